@@ -1,0 +1,383 @@
+r"""Reference solutions used to verify the finite-element rod solver.
+
+Conventions
+-----------
+* Planar problems live in the x-y plane.  The rod is clamped at ``s = 0``
+  with its tangent along ``+x``; ``s`` is the arclength of the *reference*
+  (unstressed, straight) configuration, ``0 <= s <= L``.
+* ``theta(s)`` is the angle of the cross-section (the director ``d_3`` of
+  :mod:`skfem_rod.rotations`, here ``d = (cos theta, sin theta)``) measured
+  counter-clockwise from ``+x``, i.e. a rotation about ``+z``.
+* Internal force ``n(s)`` and moment ``m(s)`` are those exerted by the part
+  ``s' > s`` on the part ``s' < s``.  Without distributed loads
+  ``n' = 0`` and ``m' + (r' x n)_z = 0``.  Bending: ``m = EI theta'``.
+* Material-frame strains of the Reissner rod: with section tangent
+  ``d = (cos theta, sin theta)`` and normal ``e = (-sin theta, cos theta)``,
+  axial force ``N = n . d``, shear force ``Q = n . e``, axial strain
+  ``eps = N / EA``, shear strain ``gamma = Q / GA`` and
+  ``r' = (1 + eps) d + gamma e``.  ``EA = GA = None`` means inextensible
+  and unshearable (``eps = gamma = 0``).
+* Tip displacements: ``u = L - x(L)`` (shortening along the axis, positive
+  when the tip moves towards the clamp) and ``v = y(L)``.
+
+Only NumPy and SciPy are used.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_bvp
+from scipy.optimize import brentq
+from scipy.special import ellipeinc, ellipkinc
+
+__all__ = [
+    "Rollup", "rollup",
+    "CantileverSolution", "elastica_cantilever", "elastica_tip_elliptic",
+    "greenhill_critical_moment", "twist_torque",
+]
+
+
+# --------------------------------------------------------------------------
+# pure bending: the roll-up of a cantilever into a circle
+# --------------------------------------------------------------------------
+@dataclass
+class Rollup:
+    """Exact roll-up configuration (see :func:`rollup`)."""
+
+    kappa: float
+    s: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+
+
+def rollup(length, EI, moment, s):
+    r"""Straight cantilever bent into a circular arc by an end moment.
+
+    The rod is clamped at ``s = 0`` along ``+x``; the moment ``moment``
+    about ``+z`` acts at ``s = length``.  The bending moment is constant,
+    so the curvature is ``kappa = moment / EI`` and
+
+    .. math::
+        x = \sin(\kappa s)/\kappa,\quad
+        y = (1 - \cos(\kappa s))/\kappa,\quad
+        \theta = \kappa s.
+
+    The axial and shear forces vanish, so extensibility and shear
+    flexibility do not change the result.  The formulas are evaluated in a
+    form (``np.sinc``) that is exact also for ``kappa -> 0``.
+
+    Parameters
+    ----------
+    length : float
+        Rod length ``L`` (only used to check that ``s`` lies in ``[0, L]``).
+    EI : float
+        Bending stiffness.
+    moment : float
+        End moment about ``+z``; ``moment = 2 pi EI / L`` closes a full
+        circle.
+    s : array_like
+        Reference arclengths at which to evaluate.
+
+    Returns
+    -------
+    Rollup
+        Dataclass with ``kappa`` and arrays ``s, x, y, theta``.
+
+    Examples
+    --------
+    >>> r = rollup(1.0, 2.0, 2 * np.pi, [0.0, 1.0])  # half circle, r = 1/pi
+    >>> np.round([r.x[-1], r.y[-1], r.theta[-1]], 8) + 0.0
+    array([0.        , 0.63661977, 3.14159265])
+    """
+    s = np.asarray(s, dtype=float)
+    if np.any(s < 0) or np.any(s > length * (1 + 1e-14)):
+        raise ValueError("arclengths must lie in [0, length]")
+    kappa = float(moment) / float(EI)
+    a = kappa * s
+    x = s * np.sinc(a / np.pi)                       # sin(a)/kappa
+    y = 0.5 * kappa * s**2 * np.sinc(a / (2 * np.pi))**2   # (1 - cos a)/kappa
+    return Rollup(kappa=kappa, s=s, x=x, y=y, theta=a)
+
+
+# --------------------------------------------------------------------------
+# tip-loaded cantilever (elastica / planar Reissner rod)
+# --------------------------------------------------------------------------
+@dataclass
+class CantileverSolution:
+    """Solution of :func:`elastica_cantilever`.
+
+    ``x(s)``, ``y(s)``, ``theta(s)``, ``m(s)`` evaluate the collocation
+    solution (a C1 cubic spline, 4th-order accurate) at any arclength.
+    ``tip_error`` is the change of the tip values ``(u, v, theta(L))`` under
+    one uniform mesh refinement; it bounds the discretization error.
+    """
+
+    load_parameter: float
+    length: float
+    EI: float
+    EA: float | None
+    GA: float | None
+    force: float
+    nodes: np.ndarray
+    tip_error: float
+    _sol: object = field(repr=False)
+
+    def _eval(self, s, i):
+        return self._sol(np.asarray(s, dtype=float))[i]
+
+    def x(self, s):
+        """Horizontal position at arclength(s) ``s``."""
+        return self._eval(s, 0)
+
+    def y(self, s):
+        """Vertical position at arclength(s) ``s``."""
+        return self._eval(s, 1)
+
+    def theta(self, s):
+        """Section angle at arclength(s) ``s``."""
+        return self._eval(s, 2)
+
+    def m(self, s):
+        """Bending moment ``EI theta'`` at arclength(s) ``s``."""
+        return self._eval(s, 3)
+
+    @property
+    def tip_u(self):
+        """Axial shortening ``L - x(L)``."""
+        return self.length - float(self.x(self.length))
+
+    @property
+    def tip_v(self):
+        """Transverse tip displacement ``y(L)``."""
+        return float(self.y(self.length))
+
+    @property
+    def tip_angle(self):
+        """Tip rotation ``theta(L)``."""
+        return float(self.theta(self.length))
+
+
+def _cantilever_system(P, EI, cA, cG):
+    """Right-hand side, boundary conditions and Jacobians.
+
+    State ``z = (x, y, theta, m)``; ``cA = 1/EA``, ``cG = 1/GA`` (0 for
+    rigid).  With ``n = (0, P)``: ``N = P sin(theta)``, ``Q = P cos(theta)``.
+    """
+    c = P * (cA - cG)
+
+    def fun(s, z):
+        th, m = z[2], z[3]
+        sn, cs = np.sin(th), np.cos(th)
+        xp = cs + c * sn * cs
+        yp = sn + P * (cA * sn**2 + cG * cs**2)
+        return np.vstack([xp, yp, m / EI, -P * xp])
+
+    def fun_jac(s, z):
+        th = z[2]
+        dxp = -np.sin(th) + c * np.cos(2 * th)
+        dyp = np.cos(th) + c * np.sin(2 * th)
+        J = np.zeros((4, 4, th.size))
+        J[0, 2] = dxp
+        J[1, 2] = dyp
+        J[2, 3] = 1.0 / EI
+        J[3, 2] = -P * dxp
+        return J
+
+    def bc(za, zb):
+        return np.array([za[0], za[1], za[2], zb[3]])
+
+    Ja = np.zeros((4, 4))
+    Ja[0, 0] = Ja[1, 1] = Ja[2, 2] = 1.0
+    Jb = np.zeros((4, 4))
+    Jb[3, 3] = 1.0
+
+    def bc_jac(za, zb):
+        return Ja, Jb
+
+    return fun, bc, fun_jac, bc_jac
+
+
+def _solve(P, EI, cA, cG, s, z, tol, max_nodes):
+    fun, bc, fun_jac, bc_jac = _cantilever_system(P, EI, cA, cG)
+    res = solve_bvp(fun, bc, s, z, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
+                    bc_tol=tol, max_nodes=max_nodes)
+    if res.status != 0:
+        raise RuntimeError(f"solve_bvp failed (P = {P}): {res.message}")
+    return res
+
+
+def elastica_cantilever(load_parameter, n=401, EA=None, GA=None, EI=1.0,
+                        length=1.0, tol=1e-10, max_step=1.0):
+    r"""Planar cantilever under a dead tip force, solved to high accuracy.
+
+    Clamped at ``s = 0`` along ``+x``; a fixed-direction force
+    ``P = load_parameter * EI / L**2`` in ``+y`` acts at ``s = L``.  The
+    internal force is constant, ``n = (0, P)``, and the boundary-value
+    problem (see the module docstring for the conventions) is
+
+    .. math::
+        x' &= (1 + \varepsilon)\cos\theta - \gamma\sin\theta, &
+        y' &= (1 + \varepsilon)\sin\theta + \gamma\cos\theta, \\
+        EI\,\theta' &= m, & m' &= -P\,x',
+
+    with ``eps = P sin(theta)/EA``, ``gamma = P cos(theta)/GA`` and
+    ``x(0) = y(0) = theta(0) = 0``, ``m(L) = 0``.  With ``EA = GA = None``
+    this is the classical inextensible elastica ``EI theta'' = -P cos theta``.
+    With ``EA == GA`` the strain ``eps d + gamma e = n / EA`` is a constant
+    vector, so the shape is the elastica shifted by ``P s / EA`` in ``y``.
+
+    It is solved with :func:`scipy.integrate.solve_bvp` (analytic
+    Jacobians), by continuation in the load from the linear beam solution
+    in steps of at most ``max_step`` in ``load_parameter``.  The final solve
+    is repeated on a uniformly refined mesh; the change of the tip values is
+    stored as ``tip_error``.
+
+    Parameters
+    ----------
+    load_parameter : float
+        ``alpha = P L**2 / EI`` (negative values load in ``-y``).
+    n : int
+        Number of nodes of the initial uniform mesh (``solve_bvp`` may add
+        more to reach ``tol``).
+    EA, GA : float or None
+        Axial and shear stiffness; ``None`` means rigid.
+    EI, length : float
+        Bending stiffness and rod length.
+    tol : float
+        Tolerance of the final ``solve_bvp`` (residual and boundary
+        conditions).  The default gives tip values accurate to about
+        1e-14; much smaller values hit the round-off floor of the
+        residual estimate and exhaust the node budget.
+    max_step : float
+        Largest increment of ``load_parameter`` per continuation step.
+
+    Returns
+    -------
+    CantileverSolution
+
+    Examples
+    --------
+    >>> sol = elastica_cantilever(1.0)
+    >>> round(sol.tip_v, 7), round(sol.tip_u, 7)
+    (0.3017208, 0.0564332)
+    >>> float(sol.y(0.5)) < sol.tip_v
+    True
+    """
+    alpha = float(load_parameter)
+    L, EI = float(length), float(EI)
+    cA = 0.0 if EA is None else 1.0 / float(EA)
+    cG = 0.0 if GA is None else 1.0 / float(GA)
+    max_nodes = 200 * n + 10000
+
+    # linear (Euler-Bernoulli) solution for the first continuation step
+    nsteps = max(1, int(np.ceil(abs(alpha) / max_step)))
+    alphas = alpha * np.arange(1, nsteps + 1) / nsteps
+    P0 = alphas[0] * EI / L**2
+    s = np.linspace(0.0, L, n)
+    z = np.vstack([s,
+                   P0 / EI * (L * s**2 / 2 - s**3 / 6),
+                   P0 / EI * (L * s - s**2 / 2),
+                   P0 * (L - s)])
+    for i, a in enumerate(alphas):
+        P = a * EI / L**2
+        final = i == nsteps - 1
+        res = _solve(P, EI, cA, cG, s, z, tol if final else 1e-6, max_nodes)
+        s, z = res.x, res.y
+
+    # convergence check: uniform refinement of the converged mesh
+    s2 = np.sort(np.concatenate([s, 0.5 * (s[1:] + s[:-1])]))
+    res2 = _solve(P, EI, cA, cG, s2, res.sol(s2), tol, 2 * max_nodes)
+
+    def tip(r):
+        zL = r.sol(L)
+        return np.array([L - zL[0], zL[1], zL[2]])
+
+    tip_error = float(np.max(np.abs(tip(res2) - tip(res))))
+    return CantileverSolution(load_parameter=alpha, length=L, EI=EI, EA=EA,
+                              GA=GA, force=P, nodes=res2.x,
+                              tip_error=tip_error, _sol=res2.sol)
+
+
+def elastica_tip_elliptic(load_parameter):
+    r"""Tip of the inextensible cantilever elastica from elliptic integrals.
+
+    Independent closed-form route (Bisshopp & Drucker 1945) used to check
+    :func:`elastica_cantilever`.  For unit length and ``alpha = P L^2/EI``
+    the first integral of ``theta'' = -alpha cos(theta)`` with
+    ``theta'(1) = 0`` is ``theta'^2 = 2 alpha (sin phi0 - sin theta)``,
+    ``phi0 = theta(1)``.  The substitution
+    ``1 + sin(theta) = 2 k^2 sin^2(psi)``, ``k = sin(pi/4 + phi0/2)``, gives
+
+    .. math::
+        \sqrt{\alpha} = F(k) - F(\psi_1, k), \qquad
+        \sin\psi_1 = 1/(\sqrt{2}\,k),
+
+    which is solved for ``phi0``.  Then
+    ``v/L = 1 - 2 (E(k) - E(psi1, k)) / sqrt(alpha)`` and, from
+    ``m(0) = P x(L)``, ``1 - u/L = sqrt(2 sin(phi0) / alpha)``.
+
+    Parameters
+    ----------
+    load_parameter : float
+        ``alpha = P L**2 / EI > 0``.
+
+    Returns
+    -------
+    dict
+        ``{"tip_angle": phi0, "u": u/L, "v": v/L}``.
+
+    Examples
+    --------
+    >>> t = elastica_tip_elliptic(1.0)
+    >>> round(t["v"], 7), round(t["u"], 7)
+    (0.3017208, 0.0564332)
+    """
+    alpha = float(load_parameter)
+    if alpha <= 0:
+        raise ValueError("load_parameter must be positive")
+
+    def parts(phi0):
+        m = np.sin(np.pi / 4 + phi0 / 2) ** 2          # parameter m = k^2
+        psi1 = np.arcsin(np.sqrt(0.5 / m))
+        return m, psi1
+
+    def residual(phi0):
+        m, psi1 = parts(phi0)
+        return ellipkinc(np.pi / 2, m) - ellipkinc(psi1, m) - np.sqrt(alpha)
+
+    # residual(0) = -sqrt(alpha) < 0 and residual -> +inf as phi0 -> pi/2
+    phi0 = brentq(residual, 0.0, np.pi / 2 * (1 - 1e-15), xtol=1e-15,
+                  rtol=4 * np.finfo(float).eps, maxiter=500)
+    m, psi1 = parts(phi0)
+    dE = ellipeinc(np.pi / 2, m) - ellipeinc(psi1, m)
+    v = 1.0 - 2.0 * dE / np.sqrt(alpha)
+    u = 1.0 - np.sqrt(2.0 * np.sin(phi0) / alpha)
+    return {"tip_angle": float(phi0), "u": float(u), "v": float(v)}
+
+
+# --------------------------------------------------------------------------
+# small closed-form results
+# --------------------------------------------------------------------------
+def greenhill_critical_moment(B, T):
+    """Greenhill's critical twisting moment ``2 sqrt(B T)``.
+
+    A long rod with bending stiffness ``B`` under tension ``T`` buckles
+    into a helix when the axial twisting moment exceeds this value.
+
+    Examples
+    --------
+    >>> float(greenhill_critical_moment(2.0, 8.0))
+    8.0
+    """
+    return 2.0 * np.sqrt(B * T)
+
+
+def twist_torque(GJ, angle, length):
+    """Torque ``GJ * angle / length`` of a straight rod twisted by ``angle``.
+
+    Examples
+    --------
+    >>> twist_torque(3.0, np.pi, 2.0) == 1.5 * np.pi
+    True
+    """
+    return GJ * angle / length

@@ -1,0 +1,211 @@
+r"""Rod kinematics: the one helper that residual, tangent and energy share.
+
+Objective interpolation (Crisfield & Jelenic 1999)
+--------------------------------------------------
+Each element has four nodes with positions ``r_I`` and rotations ``R_I``.
+The element's reference rotation is the rotation of one of its nodes,
+``R_r = R_a`` with ``a`` = :data:`REF_NODE` (the node at xi = 1/3).  In the
+co-rotated *local coordinates*
+
+    rho_I = R_r^T r_I,        psi_I = log(R_r^T R_I)      (|psi_I| < pi)
+
+the element is interpolated with the cubic Lagrange functions ``N_I``:
+
+    rho(s) = sum N_I rho_I,   psi(s) = sum N_I psi_I,   R(s) = R_r exp(psi(s)).
+
+Everything depends only on the current nodal values, so the discrete energy
+is objective (a rigid rotation of all nodes changes nothing) and path
+independent (no history), for any number of turns: only the rotation *within*
+one element must stay below ``pi`` (:data:`PSI_MAX` guards it).
+
+Exact strains (no small-angle simplification, cf. the paper's eq. 2.3)
+---------------------------------------------------------------------
+With ``Lambda = exp(psi)`` and ``T`` the tangent operator (see
+:mod:`skfem_rod.rotations`), the material strains are
+
+    v = R^T r' = Lambda^T rho',         u = axial(R^T R') = T(psi)^T psi'.
+
+Collect ``z = (rho', psi, psi')`` (9 numbers at a point) and the strains
+``eps = (v, u)`` (6 numbers).  This module gives, at quadrature points,
+
+* ``A = d eps / d z`` (6 x 9),
+* ``G = S . d^2 eps / d z^2`` (9 x 9), the geometric term, for the stress
+  resultants ``S = (N, M) = C (eps - eps0)`` (material frame),
+
+so that the energy density ``W = 1/2 (eps - eps0) . C (eps - eps0)`` has
+gradient ``A^T S`` and Hessian ``A^T C A + G`` with respect to ``z``.
+Spatial resultants are ``n = R N``, ``m = R M`` (the paper's eq. 3.5).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from .rotations import (hat, expm, logm, tangent, tangent_inv,
+                        dtangent_matrix, dtangent_form, d2tangent_form)
+
+#: local index (scikit-fem dof order 0, 1, 1/3, 2/3) of the reference node
+REF_NODE = 2
+#: largest admitted rotation of a node relative to its element's reference
+PSI_MAX = 0.95 * np.pi
+
+
+class ElementRotationError(ValueError):
+    """An element rotates too much between its nodes for the local chart."""
+
+
+@dataclass
+class LocalCoordinates:
+    """Co-rotated nodal coordinates of every element (arrays over elements)."""
+    Rr: np.ndarray     # (ne, 3, 3) reference rotation R_r
+    rho: np.ndarray    # (ne, 4, 3) local positions  R_r^T r_I
+    psi: np.ndarray    # (ne, 4, 3) local rotation vectors log(R_r^T R_I)
+
+
+def local_coordinates(r_el, R_el):
+    """Local coordinates of elements from nodal positions ``(ne, 4, 3)`` and
+    rotations ``(ne, 4, 3, 3)``.
+
+    Raises :class:`ElementRotationError` if a node is rotated by more than
+    :data:`PSI_MAX` relative to its element's reference node.
+    """
+    Rr = R_el[:, REF_NODE]
+    RrT = np.swapaxes(Rr, -1, -2)
+    psi = logm(RrT[:, None] @ R_el)
+    rho = np.einsum("eij,eIj->eIi", RrT, r_el)
+    ang = np.linalg.norm(psi, axis=-1).max(axis=1)
+    bad = np.flatnonzero(ang > PSI_MAX)
+    if bad.size:
+        raise ElementRotationError(
+            f"element(s) {bad[:5].tolist()} rotate by up to "
+            f"{ang[bad].max():.3f} rad between nodes (allowed < {PSI_MAX:.3f} "
+            "rad); refine the mesh (n_elements) or take smaller load steps")
+    return LocalCoordinates(Rr=Rr, rho=rho, psi=psi)
+
+
+def interpolate(loc, N, dN):
+    """Fields at points: ``psi``, ``psi'``, ``rho'`` of shape ``(ne, nq, 3)``.
+
+    ``N`` and ``dN`` are ``(ne, nq, 4)`` shape functions and their arclength
+    derivatives at the points.
+    """
+    psi = np.einsum("eqI,eIi->eqi", N, loc.psi)
+    dpsi = np.einsum("eqI,eIi->eqi", dN, loc.psi)
+    drho = np.einsum("eqI,eIi->eqi", dN, loc.rho)
+    return psi, dpsi, drho
+
+
+def strains(psi, dpsi, drho):
+    """Material strains ``eps = (v, u)`` (``(..., 6)``) and ``Lambda``."""
+    Lam = expm(psi)
+    Tt = np.swapaxes(tangent(psi), -1, -2)
+    v = np.einsum("...ji,...j->...i", Lam, drho)
+    u = np.einsum("...ij,...j->...i", Tt, dpsi)
+    return np.concatenate([v, u], axis=-1), Lam
+
+
+@dataclass
+class PointState:
+    """Everything the weak form needs at a set of points."""
+    eps: np.ndarray    # (..., 6) strains (v, u)
+    S: np.ndarray      # (..., 6) material resultants (N, M) = C (eps - eps0)
+    W: np.ndarray      # (...)   energy density
+    A: np.ndarray      # (..., 6, 9) d eps / d z
+    G: np.ndarray      # (..., 9, 9) S . d^2 eps / d z^2
+    Lam: np.ndarray    # (..., 3, 3) local rotation exp(psi)
+
+
+def point_state(psi, dpsi, drho, eps0, C, second=True):
+    """Strains, resultants, energy density, ``A`` and (optionally) ``G``.
+
+    This is the single kinematics helper: the residual uses ``A^T S``, the
+    tangent ``A^T C A + G``, the energy ``W``.  ``C`` is the ``6 x 6``
+    section stiffness (order ``v1, v2, v3, u1, u2, u3``).
+    """
+    eps, Lam = strains(psi, dpsi, drho)
+    de = eps - eps0
+    S = de @ C.T
+    W = 0.5 * np.einsum("...i,...i->...", de, S)
+    Tt = np.swapaxes(tangent(psi), -1, -2)
+    v, u = eps[..., :3], eps[..., 3:]
+    shape = psi.shape[:-1]
+    A = np.zeros(shape + (6, 9))
+    A[..., :3, 0:3] = np.swapaxes(Lam, -1, -2)
+    A[..., :3, 3:6] = hat(v) @ Tt
+    # u = T(-psi) psi'  =>  du/dpsi a = -DT(-psi)[a] psi'
+    A[..., 3:, 3:6] = -dtangent_matrix(-psi, dpsi)
+    A[..., 3:, 6:9] = Tt
+    G = None
+    if second:
+        Nm, Mm = S[..., :3], S[..., 3:]
+        G = np.zeros(shape + (9, 9))
+        # N . d2v: mixed (rho', psi) and (psi, psi)
+        G_rp = -Lam @ hat(Nm) @ Tt
+        G[..., 0:3, 3:6] = G_rp
+        G[..., 3:6, 0:3] = np.swapaxes(G_rp, -1, -2)
+        G_pp = (np.swapaxes(Tt, -1, -2) @ hat(Nm) @ hat(v) @ Tt
+                - dtangent_form(-psi, np.cross(Nm, v)))
+        # M . d2u: (psi, psi) and (psi', psi)
+        G_pp = G_pp + d2tangent_form(-psi, Mm, dpsi)
+        G[..., 3:6, 3:6] = G_pp          # symmetric (checked in tests)
+        Q = -dtangent_form(-psi, Mm)          # rows psi', cols psi
+        G[..., 6:9, 3:6] = Q
+        G[..., 3:6, 6:9] = np.swapaxes(Q, -1, -2)
+    return PointState(eps=eps, S=S, W=W, A=A, G=G, Lam=Lam)
+
+
+def chart(loc):
+    """Map from element dofs ``y = (r_I, w_I)`` (spatial positions and
+    spins) to local dofs ``x = (rho_I, psi_I)``: ``delta x = B delta y``.
+
+    Returns ``B`` of shape ``(ne, 24, 24)`` in the local dof order
+    ``6 I + c`` (``c`` = 0..2 position / local position, 3..5 spin / psi)
+    and the matrices ``P_I = T(psi_I)^{-1} R_r^T`` ``(ne, 4, 3, 3)``.
+    """
+    ne = loc.Rr.shape[0]
+    a = REF_NODE
+    RrT = np.swapaxes(loc.Rr, -1, -2)
+    P = tangent_inv(loc.psi) @ RrT[:, None]
+    B = np.zeros((ne, 24, 24))
+    for I in range(4):                       # 4 nodes: a fixed, tiny loop
+        B[:, 6 * I:6 * I + 3, 6 * I:6 * I + 3] = RrT
+        B[:, 6 * I:6 * I + 3, 6 * a + 3:6 * a + 6] += hat(loc.rho[:, I]) @ RrT
+        if I != a:
+            B[:, 6 * I + 3:6 * I + 6, 6 * I + 3:6 * I + 6] = P[:, I]
+            B[:, 6 * I + 3:6 * I + 6, 6 * a + 3:6 * a + 6] = -P[:, I]
+    return B, P
+
+
+def chart_curvature(loc, P, g):
+    """Second-order term of the chart: ``G[i, j] = g . d(B_row)/dy_j`` for the
+    multiplicative update, with ``g`` the element gradient in local dofs
+    ``(ne, 24)``.  Returns ``(ne, 24, 24)`` (rows: test, cols: increment).
+    """
+    ne = loc.Rr.shape[0]
+    a = REF_NODE
+    Rr = loc.Rr
+    RrT = np.swapaxes(Rr, -1, -2)
+    Gc = np.zeros((ne, 24, 24))
+    wa = slice(6 * a + 3, 6 * a + 6)
+    for I in range(4):
+        g_rho = g[:, 6 * I:6 * I + 3]
+        G_sp = np.einsum("eij,ej->ei", Rr, g_rho)
+        rI = slice(6 * I, 6 * I + 3)
+        Gc[:, rI, wa] += -hat(G_sp)
+        Gc[:, wa, rI] += hat(G_sp)
+        Gc[:, wa, wa] += (Rr @ hat(g_rho) @ hat(loc.rho[:, I]) @ RrT
+                          - hat(np.einsum("eij,ej->ei", Rr,
+                                          np.cross(g_rho, loc.rho[:, I]))))
+        if I == a:
+            continue
+        g_psi = g[:, 6 * I + 3:6 * I + 6]
+        h = np.einsum("eji,ej->ei", tangent_inv(loc.psi[:, I]), g_psi)
+        H_sp = np.einsum("eij,ej->ei", Rr, h)
+        Q = dtangent_form(loc.psi[:, I], h)
+        PI = P[:, I]
+        M = -np.swapaxes(PI, -1, -2) @ Q @ PI
+        wI = slice(6 * I + 3, 6 * I + 6)
+        Gc[:, wI, wI] += M
+        Gc[:, wI, wa] += -M - hat(H_sp)
+        Gc[:, wa, wI] += -M
+        Gc[:, wa, wa] += M + hat(H_sp)
+    return Gc

@@ -1,0 +1,143 @@
+"""The discretization: a scikit-fem 1D mesh with nodal P3 bases and dof maps.
+
+Degrees of freedom
+------------------
+Every P3 node ``n`` (scikit-fem's scalar dof numbering: the mesh vertices
+first, then two interior nodes per element) carries six unknowns, numbered
+by scikit-fem's ``ElementVector(ElementLineP3(), 6)`` as ``6 n + c``:
+``c = 0, 1, 2`` position increment, ``c = 3, 4, 5`` spatial spin increment
+(see :mod:`skfem_rod.rotations` for the spin convention).
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import MeshLine, Basis, ElementVector
+from skfem.quadrature import get_quadrature
+from skfem.refdom import RefLine
+
+from .element import ElementLineP3, ORDER_BY_POSITION
+
+
+def _check_count(name, value, minimum):
+    if not (isinstance(value, (int, np.integer)) and value >= minimum):
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+@dataclass
+class RodMesh:
+    """Mesh of ``[0, length]`` with P3 bases, quadrature data and dof maps.
+
+    Parameters
+    ----------
+    length : float
+        Rod length (> 0).
+    n_elements : int
+        Number of cubic elements (>= 1).
+    n_quad : int
+        Gauss points per element for the internal work (default 3: full
+        4-point integration locks for slender rods, see docs/theory.md).
+
+    Examples
+    --------
+    >>> m = RodMesh(2.0, 4)
+    >>> m.n_nodes, m.n_dofs
+    (13, 78)
+    """
+    length: float
+    n_elements: int
+    n_quad: int = 3
+    vertices: np.ndarray = None
+
+    basis: Basis = field(init=False, repr=False)
+    sbasis: Basis = field(init=False, repr=False)
+
+    def __post_init__(self):
+        if not (np.isfinite(self.length) and self.length > 0):
+            raise ValueError(f"length must be a finite number > 0, got {self.length!r}")
+        _check_count("n_elements", self.n_elements, 1)
+        _check_count("n_quad", self.n_quad, 1)
+        if self.vertices is None:
+            self.vertices = np.linspace(0.0, self.length, self.n_elements + 1)
+        v = np.asarray(self.vertices, dtype=float)
+        if v.shape != (self.n_elements + 1,) or np.any(np.diff(v) <= 0):
+            raise ValueError("vertices must be n_elements + 1 increasing arclengths")
+        self.vertices = v
+        mesh = MeshLine(v)
+        quad = get_quadrature(RefLine, 2 * self.n_quad - 1)
+        self.sbasis = Basis(mesh, ElementLineP3(), quadrature=quad)
+        self.basis = Basis(mesh, ElementVector(ElementLineP3(), 6), quadrature=quad)
+        self.mesh = mesh
+        sb = self.sbasis
+        #: (ne, 4) global node index of each local node (scikit-fem order)
+        self.nodes = sb.element_dofs.T.copy()
+        #: (n_nodes,) arclength of each node
+        self.s_nodes = sb.doflocs[0].copy()
+        #: node indices sorted by arclength (for output along the rod)
+        self.order = np.argsort(self.s_nodes, kind="stable")
+        #: (ne, 24) global dof of each local dof (6 I + c), scikit-fem's map
+        self.edofs = self.basis.element_dofs.T.copy()
+        assert np.array_equal(self.edofs, (6 * self.nodes[:, :, None]
+                                           + np.arange(6)).reshape(-1, 24))
+        #: quadrature: (ne, nq, 4) shape functions and arclength derivatives
+        self.N = np.stack([sb.basis[i][0].value for i in range(4)], axis=-1)
+        self.dN = np.stack([sb.basis[i][0].grad[0] for i in range(4)], axis=-1)
+        self.dx = sb.dx.copy()                       # (ne, nq) weights * J
+        self.s_quad = sb.mapping.F(sb.X)[0]          # (ne, nq) arclengths
+        self._pattern()
+
+    # sizes ---------------------------------------------------------------
+    @property
+    def n_nodes(self):
+        return self.s_nodes.size
+
+    @property
+    def n_dofs(self):
+        return 6 * self.n_nodes
+
+    @property
+    def end_nodes(self):
+        """Global node indices at s = 0 and s = length."""
+        return int(self.order[0]), int(self.order[-1])
+
+    # sparse pattern -------------------------------------------------------
+    def _pattern(self):
+        """Precompute the CSC pattern of the element matrices and the map
+        from element-matrix entries to its data array (summing duplicates)."""
+        ed = self.edofs
+        rows = np.repeat(ed, 24, axis=1).ravel()
+        cols = np.tile(ed, (1, 24)).ravel()
+        key = cols.astype(np.int64) * self.n_dofs + rows
+        ukey, inv = np.unique(key, return_inverse=True)
+        self._scatter = inv
+        self._indices = (ukey % self.n_dofs).astype(np.int32)
+        ucol = ukey // self.n_dofs
+        self._indptr = np.searchsorted(ucol, np.arange(self.n_dofs + 1)).astype(np.int32)
+        self._nnz = ukey.size
+
+    def assemble_matrix(self, Ke):
+        """Global CSC matrix from element matrices ``(ne, 24, 24)``
+        (rows: test dofs, columns: trial dofs)."""
+        data = np.bincount(self._scatter, weights=Ke.ravel(), minlength=self._nnz)
+        return sp.csc_matrix((data, self._indices.copy(), self._indptr.copy()),
+                             shape=(self.n_dofs, self.n_dofs))
+
+    def assemble_vector(self, fe):
+        """Global vector from element vectors ``(ne, 24)``."""
+        return np.bincount(self.edofs.ravel(), weights=fe.ravel(),
+                           minlength=self.n_dofs)
+
+    def locate(self, s):
+        """Element index and reference coordinate of arclengths ``s``."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if np.any(~np.isfinite(s)) or np.any(s < -1e-12 * self.length) \
+                or np.any(s > self.length * (1 + 1e-12)):
+            raise ValueError(f"arclength s must lie in [0, {self.length}], got {s}")
+        e = np.clip(np.searchsorted(self.vertices, s, side="right") - 1,
+                    0, self.n_elements - 1)
+        xi = (s - self.vertices[e]) / (self.vertices[e + 1] - self.vertices[e])
+        return e, xi
+
+    def element_nodes_by_position(self):
+        """(ne, 4) node indices ordered along each element."""
+        return self.nodes[:, ORDER_BY_POSITION]

@@ -1,0 +1,99 @@
+"""Cross-section stiffness of the rod.
+
+The section stiffness ``C`` is the paper's 6 x 6 matrix ``A`` (eq. 5.2), in
+the order of the material strains ``(v1, v2, v3, u1, u2, u3)``:
+shear along ``d1``, ``d2``, stretch along ``d3``, bending about ``d1``,
+``d2``, twist about ``d3``.  Diagonal: ``(GA1, GA2, EA, EI1, EI2, GJ)``.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+_NAMES = ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")
+
+
+def _positive(name, value):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number > 0, got {value!r}") from None
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Section:
+    """Section stiffness (and radius, used by contact and rendering).
+
+    Parameters
+    ----------
+    EA, GA1, GA2, EI1, EI2, GJ : float
+        Axial, shear, bending and torsional stiffnesses (all > 0).
+    radius : float, optional
+        Radius of the circular cross-section (the paper's ``eps``).
+    matrix : array (6, 6), optional
+        A full symmetric positive-definite stiffness replacing the diagonal.
+
+    Examples
+    --------
+    >>> sec = Section.circle(E=1e6, nu=0.3, radius=0.01)
+    >>> round(sec.GJ / sec.EI1, 4)      # = 1 / (1 + nu) for a circle
+    0.7692
+    """
+    EA: float
+    GA1: float
+    GA2: float
+    EI1: float
+    EI2: float
+    GJ: float
+    radius: float = None
+    matrix: np.ndarray = None
+
+    def __post_init__(self):
+        for n in _NAMES:
+            object.__setattr__(self, n, _positive(n, getattr(self, n)))
+        if self.radius is not None:
+            object.__setattr__(self, "radius", _positive("radius", self.radius))
+        if self.matrix is not None:
+            C = np.array(self.matrix, dtype=float)
+            if C.shape != (6, 6) or not np.all(np.isfinite(C)):
+                raise ValueError(f"matrix must be a finite 6 x 6 array, got shape {C.shape}")
+            if not np.allclose(C, C.T, rtol=1e-12, atol=0):
+                raise ValueError("matrix must be symmetric")
+            if np.linalg.eigvalsh(C).min() <= 0:
+                raise ValueError("matrix must be positive definite")
+            object.__setattr__(self, "matrix", C)
+
+    @classmethod
+    def circle(cls, E, nu, radius, shear_coefficient=None):
+        """Solid circular section of ``radius`` from Young's modulus ``E`` and
+        Poisson's ratio ``nu`` (``-1 < nu < 0.5``).  The shear coefficient
+        defaults to Cowper's ``6 (1 + nu) / (7 + 6 nu)``."""
+        E = _positive("E", E)
+        radius = _positive("radius", radius)
+        if not (np.isfinite(nu) and -1 < nu < 0.5):
+            raise ValueError(f"nu must lie in (-1, 0.5), got {nu!r}")
+        k = (6 * (1 + nu) / (7 + 6 * nu) if shear_coefficient is None
+             else _positive("shear_coefficient", shear_coefficient))
+        G = E / (2 * (1 + nu))
+        A = np.pi * radius**2
+        I = np.pi * radius**4 / 4
+        return cls(EA=E * A, GA1=k * G * A, GA2=k * G * A, EI1=E * I, EI2=E * I,
+                   GJ=G * 2 * I, radius=radius)
+
+    @classmethod
+    def from_matrix(cls, C, radius=None):
+        """Section with a full symmetric positive-definite 6 x 6 stiffness."""
+        C = np.asarray(C, dtype=float)
+        if C.shape != (6, 6):
+            raise ValueError(f"matrix must be 6 x 6, got shape {C.shape}")
+        d = np.diag(C)
+        return cls(*(d[[2, 0, 1, 3, 4, 5]]), radius=radius, matrix=C)
+
+    @property
+    def C(self):
+        """The 6 x 6 stiffness in strain order ``(v1, v2, v3, u1, u2, u3)``."""
+        if self.matrix is not None:
+            return self.matrix
+        return np.diag([self.GA1, self.GA2, self.EA, self.EI1, self.EI2, self.GJ])

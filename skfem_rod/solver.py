@@ -1,0 +1,246 @@
+"""Newton-Raphson with the consistent tangent, load stepping with automatic
+step cutting, and a backtracking safeguard.
+
+The loop, in plain sight::
+
+    lam = 0
+    while lam < 1:
+        try the step lam -> lam + dlam:
+            apply the prescribed increments of the supports (first iteration)
+            Newton: assemble R(y), K(y); solve K dy = -R; y <- y (+) alpha dy
+        converged: keep the step (and let dlam grow back)
+        failed:    halve dlam; stop with the converged steps if dlam < min_step
+
+``y (+) dy`` is the configuration update: ``r <- r + dr``,
+``R <- exp(dw) R`` at every node (spatial spins, :mod:`skfem_rod.rotations`).
+"""
+import difflib
+from dataclasses import dataclass, fields
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from .assembly import internal_work, shape_operator, roundoff_force_scale
+from .kinematics import ElementRotationError
+from .loads import distributed_vector, point_loads
+from .results import Result
+from .rotations import expm
+
+
+@dataclass
+class SolverOptions:
+    """Controls of :func:`solve`.
+
+    rtol : converged when ``|R_free| <= rtol * max(|f_ext|, |reactions|)``
+        or when ``|R_free|`` is at the round-off floor of the assembly,
+        ``roundoff * |forces of a unit strain error|`` (see
+        :func:`skfem_rod.assembly.roundoff_force_scale`).
+    max_iterations : Newton iterations per step before the step is cut.
+    line_search : safeguard the Newton update: scale it so that no nodal
+        spin exceeds ``max_spin_update``, and halve it (at most
+        ``max_backtracks`` times) while the trial state leaves an element
+        chart, is not finite, or raises the residual norm more than
+        ``max_growth`` times.  (A residual-norm or energy-slope merit test
+        vetoes good Newton steps of stiff rods: one full step from a
+        straight rod raises the residual 2000x through O(theta^2) axial
+        strain, and the next step converges; see docs/theory.md.)
+    min_step : smallest load-factor step before the solve gives up.
+    max_rotation_step : largest prescribed end rotation per step (rad).
+    grow : factor by which a cut step grows back after a success.
+    """
+    rtol: float = 1e-10
+    roundoff: float = 1e-13
+    max_iterations: int = 25
+    line_search: bool = True
+    max_backtracks: int = 6
+    max_spin_update: float = 0.5 * np.pi
+    max_growth: float = 1e6
+    min_step: float = 1e-6
+    max_rotation_step: float = 0.5 * np.pi
+    grow: float = 2.0
+
+    def __post_init__(self):
+        for name in ("rtol", "roundoff", "min_step", "max_rotation_step",
+                     "max_spin_update", "max_growth"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        for name in ("max_iterations", "max_backtracks"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and v >= 1):
+                raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+        if not (np.isfinite(self.grow) and self.grow >= 1):
+            raise ValueError(f"grow must be a number >= 1, got {self.grow!r}")
+
+
+def make_options(kwargs):
+    names = [f.name for f in fields(SolverOptions)]
+    for k in kwargs:
+        if k not in names:
+            close = difflib.get_close_matches(k, names, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ValueError(f"unknown solver option {k!r}{hint} Allowed: {', '.join(names)}")
+    return SolverOptions(**kwargs)
+
+
+class _System:
+    """Residual and tangent of a rod at a load factor (internal work from
+    :mod:`skfem_rod.assembly`, loads from :mod:`skfem_rod.loads`)."""
+
+    def __init__(self, rod):
+        self.rod = rod
+        self.mesh = rod.mesh
+        self.Z = shape_operator(rod.mesh)
+        self.f_dist = distributed_vector(rod.mesh, rod.distributed)
+        self.fixed = rod.fixed_dofs()
+        self.free = ~self.fixed
+        self.force_scale = roundoff_force_scale(rod.mesh, rod.r0, rod.R0, rod.eps0,
+                                                rod.C, self.Z)
+
+    def evaluate(self, r, R, lam, tangent=True):
+        rod = self.rod
+        iw = internal_work(self.mesh, r, R, rod.eps0, rod.C, tangent=tangent, Z=self.Z)
+        fp, Kp = point_loads(self.mesh, rod.point_loads, R, rod.R0, lam)
+        f_ext = lam * self.f_dist + fp
+        res = iw.force - f_ext
+        K = iw.matrix
+        if tangent and Kp is not None:
+            K = (K + Kp).tocsc()
+        return res, K, f_ext, iw
+
+    def factor(self, K):
+        """Factorize ``K`` on the free dofs (constrained rows/columns
+        replaced by the identity, pattern unchanged); returns a solver."""
+        K = K.tocsc(copy=True)
+        cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
+        rows = K.indices
+        fixed = self.fixed
+        kill = fixed[rows] | fixed[cols]
+        K.data[kill] = 0.0
+        K.data[kill & (rows == cols)] = 1.0
+        lu = spla.splu(K)
+        return lambda rhs: lu.solve(np.where(fixed, 0.0, rhs))
+
+
+def _prescribed_increment(rod, dlam):
+    d = np.zeros(rod.mesh.n_dofs)
+    for n, sup in rod.supports.items():
+        d[6 * n:6 * n + 3] = np.where(sup.position, dlam * sup.displacement, 0.0)
+        d[6 * n + 3:6 * n + 6] = np.where(sup.rotation, dlam * sup.rotation_vector, 0.0)
+    return d
+
+
+def _update(r, R, dy, alpha):
+    d = alpha * dy.reshape(-1, 6)
+    return r + d[:, :3], expm(d[:, 3:]) @ R
+
+
+def newton(system, r, R, lam, prescribed, opts):
+    """Newton iterations at load factor ``lam`` from ``(r, R)``.
+
+    Returns ``(converged, r, R, info)`` where ``info`` has the residual
+    history, the iteration count, the reason of a failure and the last
+    evaluation.
+    """
+    free, fixed = system.free, system.fixed
+    remaining = prescribed.copy()
+    history = []
+    try:
+        res, K, f_ext, iw = system.evaluate(r, R, lam)
+    except ElementRotationError as err:
+        return False, r, R, dict(history=history, iterations=0, reason=str(err))
+    for it in range(opts.max_iterations + 1):
+        rn = float(np.linalg.norm(res[free]))
+        history.append(rn)
+        scale = max(np.linalg.norm(f_ext), np.linalg.norm(res[fixed]), 1e-300)
+        floor = opts.roundoff * system.force_scale
+        if not np.isfinite(rn):
+            return False, r, R, dict(history=history, iterations=it,
+                                     reason="non-finite residual")
+        if rn <= max(opts.rtol * scale, floor) and not np.any(remaining):
+            return True, r, R, dict(history=history, iterations=it, res=res, iw=iw,
+                                    f_ext=f_ext, reason="")
+        if it == opts.max_iterations:
+            break
+        rhs = -res - K @ remaining
+        try:
+            solve_k = system.factor(K)
+            dy = solve_k(rhs)
+        except RuntimeError as err:          # singular factor
+            return False, r, R, dict(history=history, iterations=it,
+                                     reason=f"singular tangent ({err})")
+        dy[fixed] = remaining[fixed]
+        if not np.all(np.isfinite(dy)):
+            return False, r, R, dict(history=history, iterations=it,
+                                     reason="non-finite Newton update")
+        alpha, accepted = 1.0, None
+        if opts.line_search:
+            spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
+            alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+        for _ in range(opts.max_backtracks + 1):
+            r_t, R_t = _update(r, R, dy, alpha)
+            try:
+                out = system.evaluate(r_t, R_t, lam)
+            except ElementRotationError:
+                alpha *= 0.5
+                continue
+            res_t = out[0][free]
+            if not np.all(np.isfinite(res_t)):
+                alpha *= 0.5
+                continue
+            if (not opts.line_search or np.any(remaining)
+                    or np.linalg.norm(res_t) <= opts.max_growth * max(rn, scale)):
+                accepted = (r_t, R_t, out)
+                break
+            alpha *= 0.5
+        if accepted is None:
+            return False, r, R, dict(history=history, iterations=it + 1,
+                                     reason="line search found no admissible update")
+        r, R, (res, K, f_ext, iw) = accepted
+        remaining = remaining * (1.0 - alpha)
+        remaining[np.abs(remaining) < 1e-300] = 0.0
+    return False, r, R, dict(history=history, iterations=opts.max_iterations,
+                             reason=f"no convergence in {opts.max_iterations} iterations "
+                                    f"(residual {history[-1]:.3e})")
+
+
+def solve(rod, n_steps=1, **kwargs):
+    """Load-step the rod from ``lam = 0`` to ``1``; see :meth:`Rod.solve`."""
+    if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
+        raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    opts = make_options(kwargs)
+    rod.check_constraints()
+    system = _System(rod)
+    result = Result(rod)
+    r, R = rod.r0.copy(), rod.R0.copy()
+    ok, r, R, info = newton(system, r, R, 0.0, np.zeros(rod.mesh.n_dofs), opts)
+    if not ok:
+        result.finish(False, f"the unloaded reference is not in equilibrium: {info['reason']}")
+        return result
+    result.append(0.0, r, R, info)
+    # largest prescribed rotation sets an upper bound on the step
+    rot = max([np.linalg.norm(s.rotation_vector) for s in rod.supports.values()] + [0.0])
+    nominal = 1.0 / n_steps
+    if rot > 0:
+        nominal = min(nominal, opts.max_rotation_step / rot)
+    lam, dlam = 0.0, nominal
+    while lam < 1.0 - 1e-14:
+        step = min(dlam, 1.0 - lam)
+        ok, r_new, R_new, info = newton(system, r, R, lam + step,
+                                        _prescribed_increment(rod, step), opts)
+        if ok:
+            lam += step
+            r, R = r_new, R_new
+            result.append(lam, r, R, info)
+            dlam = min(dlam * opts.grow, nominal)
+        else:
+            result.log.append(f"step to lam={lam + step:.6g} failed: {info['reason']}; "
+                              "cutting the step")
+            dlam = 0.5 * step
+            if dlam < opts.min_step:
+                result.finish(False, f"stopped at load factor {lam:.6g}: the step to "
+                              f"{lam + step:.6g} failed ({info['reason']}) and the step "
+                              f"size fell below min_step={opts.min_step:g}")
+                return result
+    result.finish(True, f"converged: {len(result.steps) - 1} steps to load factor 1")
+    return result
