@@ -462,3 +462,36 @@ def write_series(directory, basename, steps, *, xdmf=True):
             f.write(_pvd_xml(entries))
     written.append(pvd)
     return written
+
+
+# --------------------------------------------------------------------------
+# JSON summaries
+# --------------------------------------------------------------------------
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        if not np.isfinite(v):
+            raise ValueError(f"results contain a non-finite number ({v}); refusing to write it")
+        return v
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    return x
+
+
+def write_json(path, data):
+    """Write a JSON summary atomically (complete or not at all); non-finite
+    numbers are refused rather than written as NaN."""
+    import json
+    text = json.dumps(_jsonable(data), indent=2)
+    with _atomic_path(path) as tmp:
+        with open(tmp, "w") as f:
+            f.write(text + "\n")
+    return os.fspath(path)

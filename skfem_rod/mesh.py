@@ -80,7 +80,7 @@ class RodMesh:
         assert np.array_equal(self.edofs, (6 * self.nodes[:, :, None]
                                            + np.arange(6)).reshape(-1, 24))
         #: quadrature: (ne, nq, 4) shape functions and arclength derivatives
-        self.N = np.stack([sb.basis[i][0].value for i in range(4)], axis=-1)
+        self.N = np.stack([np.asarray(sb.basis[i][0]) for i in range(4)], axis=-1)
         self.dN = np.stack([sb.basis[i][0].grad[0] for i in range(4)], axis=-1)
         self.dx = sb.dx.copy()                       # (ne, nq) weights * J
         self.s_quad = sb.mapping.F(sb.X)[0]          # (ne, nq) arclengths
