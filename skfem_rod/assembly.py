@@ -8,7 +8,10 @@ which is ~40x faster for this 6-field element (see benchmarks/RESULTS.md).
 ``tests/test_forms.py`` checks that both give the same vector and matrix.
 
 Local dof order ``x = 6 I + 3 t + c``: node ``I`` (scikit-fem order), type
-``t`` (0: ``rho``, 1: ``psi``), component ``c``.
+``t`` (0: ``rho``, 1: ``psi``), component ``c``.  The kernels are batched
+``matmul`` over (element, point) pairs: ``g = sum_q dx Z^T A^T S``,
+``H = sum_q dx Z^T (A^T C A + G) Z``, then ``f = B^T g``,
+``K = B^T H B + G_chart`` (see :mod:`skfem_rod.kinematics`).
 """
 from dataclasses import dataclass
 
@@ -19,14 +22,20 @@ from .kinematics import (local_coordinates, interpolate, point_state, chart,
 
 
 def shape_operator(mesh):
-    """``(ne, nq, 3, 8)`` map from local nodal values (node ``I``, type ``t``)
-    to the point fields ``z = (rho', psi, psi')``, per component."""
-    ne, nq = mesh.dx.shape
-    Z = np.zeros((ne, nq, 3, 4, 2))
-    Z[:, :, 0, :, 0] = mesh.dN      # rho' from rho_I
-    Z[:, :, 1, :, 1] = mesh.N       # psi  from psi_I
-    Z[:, :, 2, :, 1] = mesh.dN      # psi' from psi_I
-    return Z.reshape(ne, nq, 3, 8)
+    """``(ne, nq, 9, 24)`` map from local element dofs ``x`` to the point
+    fields ``z = (rho', psi, psi')``: ``z = Z x`` (cached on the mesh)."""
+    Z = getattr(mesh, "_shape_operator", None)
+    if Z is None:
+        ne, nq = mesh.dx.shape
+        z = np.zeros((ne, nq, 3, 4, 2))
+        z[:, :, 0, :, 0] = mesh.dN      # rho' from rho_I
+        z[:, :, 1, :, 1] = mesh.N       # psi  from psi_I
+        z[:, :, 2, :, 1] = mesh.dN      # psi' from psi_I
+        # kinds (k) x nodes/types (m), times the 3 x 3 identity per component
+        Z = np.einsum("eqkm,cd->eqkcmd", z.reshape(ne, nq, 3, 8),
+                      np.eye(3)).reshape(ne, nq, 9, 24)
+        mesh._shape_operator = Z
+    return Z
 
 
 @dataclass
@@ -59,19 +68,18 @@ def internal_work(mesh, r, R, eps0, C, tangent=True, Z=None):
     psi, dpsi, drho = interpolate(loc, mesh.N, mesh.dN)
     ps = point_state(psi, dpsi, drho, eps0, C, second=tangent)
     ne, nq = mesh.dx.shape
-    dx = mesh.dx
+    dx = mesh.dx[..., None, None]
+    At = np.swapaxes(ps.A, -1, -2)                               # (ne, nq, 9, 6)
+    Zt = np.swapaxes(Z, -1, -2)                                  # (ne, nq, 24, 9)
     # gradient in local dofs: g = sum_q dx Z^T A^T S
-    AtS = np.einsum("eqai,eqa->eqi", ps.A, ps.S).reshape(ne, nq, 3, 3)
-    g = np.einsum("eq,eqkm,eqkc->emc", dx, Z, AtS).reshape(ne, 24)
+    g = (dx * (Zt @ (At @ ps.S[..., None]))).sum(axis=1)[..., 0]  # (ne, 24)
     B, P = chart(loc)
-    fe = np.einsum("eji,ej->ei", B, g)
-    energy = float(np.sum(dx * ps.W))
+    fe = (np.swapaxes(B, 1, 2) @ g[..., None])[..., 0]
+    energy = float(np.sum(mesh.dx * ps.W))
     K = None
     if tangent:
-        K9 = np.einsum("eqai,ab,eqbj->eqij", ps.A, C, ps.A) + ps.G
-        K9 = (K9 * dx[..., None, None]).reshape(ne, nq, 3, 3, 3, 3)
-        H = np.einsum("eqkm,eqkcld,eqln->emcnd", Z, K9, Z,
-                      optimize=True).reshape(ne, 24, 24)
+        K9 = At @ (C @ ps.A) + ps.G                              # (ne, nq, 9, 9)
+        H = (dx * (Zt @ (K9 @ Z))).sum(axis=1)                    # (ne, 24, 24)
         Ke = np.swapaxes(B, 1, 2) @ H @ B + chart_curvature(loc, P, g)
         K = mesh.assemble_matrix(Ke)
     return InternalWork(force=mesh.assemble_vector(fe), matrix=K, energy=energy,
@@ -87,9 +95,8 @@ def roundoff_force_scale(mesh, r, R, eps0, C, Z=None):
     loc = local_coordinates(r[mesh.nodes], R[mesh.nodes])
     psi, dpsi, drho = interpolate(loc, mesh.N, mesh.dN)
     ps = point_state(psi, dpsi, drho, eps0, C, second=False)
-    ne, nq = mesh.dx.shape
     unit = np.abs(C).sum(axis=1)
-    AtS = np.einsum("eqai,a->eqi", np.abs(ps.A), unit).reshape(ne, nq, 3, 3)
-    g = np.einsum("eq,eqkm,eqkc->emc", mesh.dx, np.abs(Z), AtS).reshape(ne, 24)
+    AtS = np.abs(np.swapaxes(ps.A, -1, -2)) @ unit                # (ne, nq, 9)
+    g = (mesh.dx[..., None, None] * (np.abs(np.swapaxes(Z, -1, -2)) @ AtS[..., None])).sum(axis=1)[..., 0]
     B, _ = chart(loc)
     return float(np.linalg.norm(mesh.assemble_vector(np.einsum("eji,ej->ei", np.abs(B), g))))
