@@ -17,6 +17,18 @@ import numpy as np
 from .rotations import expm
 
 
+def _positive(name, value):
+    """``value`` as a float; ValueError naming ``name`` unless it is a finite
+    number > 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}") from None
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
 def _unit(v, name):
     v = np.asarray(v, dtype=float)
     n = np.linalg.norm(v)
@@ -61,9 +73,7 @@ class Shape:
     """A reference shape: callable ``shape(s) -> (r0, R0)`` with a length."""
 
     def __init__(self, length, func, name="shape"):
-        if not (np.isfinite(length) and length > 0):
-            raise ValueError(f"length must be a finite number > 0, got {length!r}")
-        self.length = float(length)
+        self.length = _positive("length", length)
         self._func = func
         self.name = name
 
@@ -103,10 +113,8 @@ def arc(radius, angle, start=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
     """Circular arc of ``radius`` subtending ``angle`` (rad), starting at
     ``start`` with unit ``tangent`` and curving toward ``toward``.
     ``d1`` is the inward normal (toward the centre), ``d2 = d3 x d1``."""
-    if not (np.isfinite(radius) and radius > 0):
-        raise ValueError(f"radius must be a finite number > 0, got {radius!r}")
-    if not (np.isfinite(angle) and angle > 0):
-        raise ValueError(f"angle must be a finite number > 0, got {angle!r}")
+    radius = _positive("radius", radius)
+    angle = _positive("angle", angle)
     t0 = _unit(tangent, "tangent")
     n0 = np.asarray(toward, float) - np.dot(toward, t0) * t0
     n0 = _unit(n0, "toward (component normal to tangent)")
@@ -125,9 +133,9 @@ def helix(radius, pitch, turns, axis_start=(0.0, 0.0, 0.0)):
     """Helix about ``+z`` of ``radius``, rise ``pitch`` per turn, ``turns``
     turns, starting at ``(radius, 0, 0)`` (+ ``axis_start``); ``d1`` is the
     principal normal (toward the axis)."""
-    for n, v in (("radius", radius), ("pitch", pitch), ("turns", turns)):
-        if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{n} must be a finite number > 0, got {v!r}")
+    radius = _positive("radius", radius)
+    pitch = _positive("pitch", pitch)
+    turns = _positive("turns", turns)
     c = pitch / (2 * np.pi)
     k = np.hypot(radius, c)
     length = 2 * np.pi * turns * k
@@ -148,7 +156,8 @@ def curve(r_of_s, length, d1_of_s=None, ds=None):
     ``d1_of_s`` gives the first director (else parallel transport)."""
     if not callable(r_of_s):
         raise ValueError("r_of_s must be a callable s -> (n, 3) positions")
-    h = 1e-5 * length if ds is None else ds
+    length = _positive("length", length)
+    h = 1e-5 * length if ds is None else _positive("ds", ds)
 
     def f(s):
         r = np.asarray(r_of_s(s), float)

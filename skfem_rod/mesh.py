@@ -20,7 +20,8 @@ from .element import ElementLineP3, ORDER_BY_POSITION
 
 
 def _check_count(name, value, minimum):
-    if not (isinstance(value, (int, np.integer)) and value >= minimum):
+    if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+            and value >= minimum):
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
 
 

@@ -19,6 +19,27 @@ from .mesh import RodMesh
 from .section import Section
 
 
+def _vector(name, value):
+    """A finite 3-vector (``finite_vector``), with a ValueError naming ``name``
+    also when ``value`` is not numeric."""
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite 3-vector of numbers, "
+                         f"got {value!r}") from None
+    return finite_vector(name, value)
+
+
+def _components(components):
+    """Validated spatial axis indices (a non-empty selection of 0, 1, 2)."""
+    arr = np.atleast_1d(np.asarray(components))
+    if (arr.ndim != 1 or arr.size == 0 or arr.dtype.kind not in "iu"
+            or np.any((arr < 0) | (arr > 2))):
+        raise ValueError("components must be spatial axis indices 0, 1, 2 "
+                         f"(x, y, z), e.g. (0, 2); got {components!r}")
+    return arr.tolist()
+
+
 @dataclass
 class Support:
     """Kinematic constraints at one node.
@@ -67,6 +88,7 @@ class Rod:
         self.supports = {}
         self.point_loads = []
         self.distributed = []
+        self.contact = None
 
     # ------------------------------------------------------------------
     @property
@@ -80,7 +102,11 @@ class Rod:
             if where not in ("start", "end"):
                 raise ValueError(f"where must be 'start', 'end' or a nodal arclength, got {where!r}")
             return self.mesh.end_nodes[0 if where == "start" else 1]
-        s = float(where)
+        try:
+            s = float(where)
+        except (TypeError, ValueError):
+            raise ValueError("where must be 'start', 'end' or a nodal arclength, "
+                             f"got {where!r}") from None
         d = np.abs(self.mesh.s_nodes - s)
         k = int(np.argmin(d))
         if not np.isfinite(s) or d[k] > 1e-9 * self.length:
@@ -102,30 +128,33 @@ class Rod:
 
     def pin(self, where, components=(0, 1, 2)):
         """Fix (components of) the position; the rotation stays free."""
+        comps = _components(components)
         sup = self._support(where)
-        sup.position[list(components)] = True
+        sup.position[comps] = True
         return self
 
     def fix_rotation(self, where, components=(0, 1, 2)):
         """Fix spin components (spatial axes) of the node at ``where``."""
+        comps = _components(components)
         sup = self._support(where)
-        sup.rotation[list(components)] = True
+        sup.rotation[comps] = True
         return self
 
     def prescribe_rotation(self, where, rotation_vector):
         """Prescribe the node rotation ``exp(lam * rotation_vector) R0``
         (spatial rotation vector at load factor 1; e.g. ``2 pi N`` about the
         axis twists by ``N`` turns, the paper's ``theta(l) = theta^l``)."""
+        rotvec = _vector("rotation_vector", rotation_vector)
         sup = self._support(where)
         sup.rotation[:] = True
-        sup.rotation_vector = finite_vector("rotation_vector", rotation_vector)
+        sup.rotation_vector = rotvec
         return self
 
     def prescribe_displacement(self, where, displacement, components=(0, 1, 2)):
         """Prescribe displacement components (total at load factor 1)."""
+        comps = _components(components)
+        d = _vector("displacement", displacement)
         sup = self._support(where)
-        d = finite_vector("displacement", displacement)
-        comps = list(components)
         sup.position[comps] = True
         sup.displacement[comps] = d[comps]
         return self
@@ -134,27 +163,59 @@ class Rod:
     def add_force(self, where, force, follower=False):
         """End (point) force at load factor 1; ``follower=True`` makes it
         rotate with the cross-section."""
-        self.point_loads.append(PointLoad(self.node(where), finite_vector("force", force),
+        self.point_loads.append(PointLoad(self.node(where), _vector("force", force),
                                           "force", bool(follower)))
         return self
 
     def add_moment(self, where, moment, follower=False):
         """End (point) moment at load factor 1 (dead: fixed spatial axis)."""
-        self.point_loads.append(PointLoad(self.node(where), finite_vector("moment", moment),
+        self.point_loads.append(PointLoad(self.node(where), _vector("moment", moment),
                                           "moment", bool(follower)))
         return self
 
     def add_distributed_force(self, force):
         """Dead force per unit reference length: a 3-vector or a callable
         ``s -> (n, 3)`` (e.g. gravity ``rho A g``)."""
-        self.distributed.append(DistributedLoad(force if callable(force)
-                                                else finite_vector("force", force), "force"))
+        self.distributed.append(DistributedLoad(self._distributed_value("force", force),
+                                                "force"))
         return self
 
     def add_distributed_torque(self, torque):
         """Dead torque per unit reference length (3-vector or callable)."""
-        self.distributed.append(DistributedLoad(torque if callable(torque)
-                                                else finite_vector("torque", torque), "torque"))
+        self.distributed.append(DistributedLoad(self._distributed_value("torque", torque),
+                                                "torque"))
+        return self
+
+    def _distributed_value(self, name, value):
+        """A finite 3-vector, or a callable checked at the quadrature points
+        (it must return finite values of shape ``(len(s), 3)``)."""
+        if not callable(value):
+            return _vector(name, value)
+        s = self.mesh.s_quad.ravel()
+        q = np.asarray(value(s), dtype=float)
+        if q.shape != (s.size, 3):
+            raise ValueError(f"distributed {name} callable must return an array of shape "
+                             f"(len(s), 3) for arclengths s; got shape {q.shape} "
+                             f"for len(s) = {s.size}")
+        if not np.all(np.isfinite(q)):
+            raise ValueError(f"distributed {name} callable returned non-finite values "
+                             "(NaN or inf)")
+        return value
+
+    def enable_contact(self, radius=None, penalty=None, exclusion=None, **options):
+        """Switch self-contact on (see :class:`skfem_rod.contact.ContactOptions`
+        for ``n_slave``, ``tolerance``, ``max_uzawa``, ``margin``)."""
+        from .contact import ContactOptions
+        eps = self.section.radius if radius is None else radius
+        if eps is None:
+            raise ValueError("contact needs a radius: give radius=... or a Section with radius")
+        if not (np.isfinite(eps) and eps > 0):
+            raise ValueError(f"contact radius must be a finite number > 0, got {eps!r}")
+        EI = max(self.section.EI1, self.section.EI2)
+        self.contact = ContactOptions(
+            radius=float(eps),
+            penalty=10.0 * eps**4 / EI if penalty is None else penalty,
+            exclusion=np.pi * eps if exclusion is None else exclusion, **options)
         return self
 
     # ------------------------------------------------------------------------

@@ -72,8 +72,13 @@ class Section:
         defaults to Cowper's ``6 (1 + nu) / (7 + 6 nu)``."""
         E = _positive("E", E)
         radius = _positive("radius", radius)
-        if not (np.isfinite(nu) and -1 < nu < 0.5):
-            raise ValueError(f"nu must lie in (-1, 0.5), got {nu!r}")
+        try:
+            nu_f = float(nu)
+        except (TypeError, ValueError):
+            nu_f = np.nan
+        if not (np.isfinite(nu_f) and -1 < nu_f < 0.5):
+            raise ValueError(f"nu must be a number in (-1, 0.5), got {nu!r}")
+        nu = nu_f
         k = (6 * (1 + nu) / (7 + 6 * nu) if shear_coefficient is None
              else _positive("shear_coefficient", shear_coefficient))
         G = E / (2 * (1 + nu))

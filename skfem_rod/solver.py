@@ -34,7 +34,10 @@ class SolverOptions:
     rtol : converged when ``|R_free| <= rtol * max(|f_ext|, |reactions|)``
         or when ``|R_free|`` is at the round-off floor of the assembly,
         ``roundoff * |forces of a unit strain error|`` (see
-        :func:`skfem_rod.assembly.roundoff_force_scale`).
+        :func:`skfem_rod.assembly.roundoff_force_scale`) *and* the last
+        Newton update was below ``increment_tol`` (positions in units of the
+        rod length, spins in radians): the floor alone accepted iterates
+        whose bending was still 5e-4 L off for very stiff rods.
     max_iterations : Newton iterations per step before the step is cut.
     line_search : safeguard the Newton update: scale it so that no nodal
         spin exceeds ``max_spin_update``, and halve it (at most
@@ -50,6 +53,7 @@ class SolverOptions:
     """
     rtol: float = 1e-10
     roundoff: float = 1e-13
+    increment_tol: float = 1e-11
     max_iterations: int = 25
     line_search: bool = True
     max_backtracks: int = 6
@@ -60,7 +64,7 @@ class SolverOptions:
     grow: float = 2.0
 
     def __post_init__(self):
-        for name in ("rtol", "roundoff", "min_step", "max_rotation_step",
+        for name in ("rtol", "roundoff", "increment_tol", "min_step", "max_rotation_step",
                      "max_spin_update", "max_growth"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
@@ -96,6 +100,23 @@ class _System:
         self.free = ~self.fixed
         self.force_scale = roundoff_force_scale(rod.mesh, rod.r0, rod.R0, rod.eps0,
                                                 rod.C, self.Z)
+        self.contact = rod.contact
+        if self.contact is not None:
+            from .contact.search import slave_points
+            self.slaves = slave_points(rod.mesh, self.contact.n_slave)
+            self.multipliers = np.zeros(self.slaves.s.size)
+            self.pairs = None
+
+    def contact_terms(self, r, tangent):
+        """Search and contact work at positions ``r`` (contact on only)."""
+        from .contact.search import search
+        from .contact.assembly import contact_work
+        c = self.contact
+        reach = 2 * c.radius + c.penalty * self.multipliers.max(initial=0.0) + c.margin
+        pairs = search(self.mesh, r, self.slaves, reach, c.exclusion)
+        energy, force, K, fN = contact_work(self.mesh, r, pairs, self.multipliers,
+                                            c.penalty, c.radius, tangent)
+        return pairs, energy, force, K, fN
 
     def evaluate(self, r, R, lam, tangent=True):
         rod = self.rod
@@ -106,6 +127,12 @@ class _System:
         K = iw.matrix
         if tangent and Kp is not None:
             K = (K + Kp).tocsc()
+        if self.contact is not None:
+            pairs, ec, fc, Kc, fN = self.contact_terms(r, tangent)
+            res = res + fc
+            if tangent:
+                K = (K + Kc).tocsc()
+            iw.contact = (pairs, fN, ec)
         return res, K, f_ext, iw
 
     def factor(self, K):
@@ -145,6 +172,8 @@ def newton(system, r, R, lam, prescribed, opts):
     free, fixed = system.free, system.fixed
     remaining = prescribed.copy()
     history = []
+    last_update = np.inf
+    length = system.rod.length
     try:
         res, K, f_ext, iw = system.evaluate(r, R, lam)
     except ElementRotationError as err:
@@ -157,7 +186,9 @@ def newton(system, r, R, lam, prescribed, opts):
         if not np.isfinite(rn):
             return False, r, R, dict(history=history, iterations=it,
                                      reason="non-finite residual")
-        if rn <= max(opts.rtol * scale, floor) and not np.any(remaining):
+        small_update = last_update <= opts.increment_tol
+        if (rn <= opts.rtol * scale or (rn <= floor and small_update)) \
+                and not np.any(remaining):
             return True, r, R, dict(history=history, iterations=it, res=res, iw=iw,
                                     f_ext=f_ext, reason="")
         if it == opts.max_iterations:
@@ -173,7 +204,7 @@ def newton(system, r, R, lam, prescribed, opts):
         if not np.all(np.isfinite(dy)):
             return False, r, R, dict(history=history, iterations=it,
                                      reason="non-finite Newton update")
-        alpha, accepted = 1.0, None
+        alpha, accepted, why = 1.0, None, "residual grew too much"
         if opts.line_search:
             spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
             alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
@@ -181,11 +212,13 @@ def newton(system, r, R, lam, prescribed, opts):
             r_t, R_t = _update(r, R, dy, alpha)
             try:
                 out = system.evaluate(r_t, R_t, lam)
-            except ElementRotationError:
+            except ElementRotationError as err:
+                why = str(err)
                 alpha *= 0.5
                 continue
             res_t = out[0][free]
             if not np.all(np.isfinite(res_t)):
+                why = "non-finite residual"
                 alpha *= 0.5
                 continue
             if (not opts.line_search or np.any(remaining)
@@ -195,8 +228,11 @@ def newton(system, r, R, lam, prescribed, opts):
             alpha *= 0.5
         if accepted is None:
             return False, r, R, dict(history=history, iterations=it + 1,
-                                     reason="line search found no admissible update")
+                                     reason=f"no admissible update after {opts.max_backtracks} "
+                                            f"halvings: {why}")
         r, R, (res, K, f_ext, iw) = accepted
+        upd = (alpha * dy).reshape(-1, 6)
+        last_update = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max()))
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
     return False, r, R, dict(history=history, iterations=opts.max_iterations,
@@ -223,17 +259,22 @@ def solve(rod, n_steps=1, **kwargs):
     nominal = 1.0 / n_steps
     if rot > 0:
         nominal = min(nominal, opts.max_rotation_step / rot)
-    lam, dlam = 0.0, nominal
+    lam, dlam, streak = 0.0, nominal, 0
     while lam < 1.0 - 1e-14:
         step = min(dlam, 1.0 - lam)
-        ok, r_new, R_new, info = newton(system, r, R, lam + step,
-                                        _prescribed_increment(rod, step), opts)
+        ok, r_new, R_new, info = _step(system, r, R, lam + step,
+                                       _prescribed_increment(rod, step), opts)
         if ok:
             lam += step
             r, R = r_new, R_new
             result.append(lam, r, R, info)
-            dlam = min(dlam * opts.grow, nominal)
+            if info.get("uzawa_note"):
+                result.log.append(f"step to lam={lam:.6g}: {info['uzawa_note']}")
+            streak += 1
+            if streak >= 2:          # grow back only after two successes in a row
+                dlam = min(dlam * opts.grow, nominal)
         else:
+            streak = 0
             result.log.append(f"step to lam={lam + step:.6g} failed: {info['reason']}; "
                               "cutting the step")
             dlam = 0.5 * step
@@ -244,3 +285,36 @@ def solve(rod, n_steps=1, **kwargs):
                 return result
     result.finish(True, f"converged: {len(result.steps) - 1} steps to load factor 1")
     return result
+
+
+def _step(system, r, R, lam, prescribed, opts):
+    """One load step: Newton, wrapped in Uzawa updates of the contact
+    multipliers when contact is on (until the largest penetration is below
+    ``tolerance * eps`` or ``max_uzawa`` updates were made)."""
+    c = system.contact
+    if c is None:
+        return newton(system, r, R, lam, prescribed, opts)
+    from .contact.law import gap, uzawa_update
+    saved = system.multipliers.copy()
+    newton_its, uzawa = 0, 0
+    while True:
+        ok, r, R, info = newton(system, r, R, lam, prescribed, opts)
+        newton_its += info["iterations"]
+        if not ok:
+            system.multipliers = saved
+            return ok, r, R, info
+        prescribed = np.zeros_like(prescribed)
+        pairs, fN, _ = info["iw"].contact
+        d = gap(pairs.distance, c.radius)
+        pen = float(d.max(initial=0.0))
+        if pen <= c.tolerance * c.radius or uzawa == c.max_uzawa:
+            if pen > c.tolerance * c.radius:
+                info["uzawa_note"] = (f"Uzawa stopped after {uzawa} updates with penetration "
+                                      f"{pen:.3e} > tolerance {c.tolerance * c.radius:.3e}")
+            info.update(uzawa=uzawa, newton_total=newton_its, penetration=pen,
+                        uzawa_converged=pen <= c.tolerance * c.radius)
+            return True, r, R, info
+        lam_new = np.zeros_like(system.multipliers)
+        lam_new[pairs.slave] = uzawa_update(d, system.multipliers[pairs.slave], c.penalty)
+        system.multipliers = lam_new
+        uzawa += 1
