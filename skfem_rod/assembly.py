@@ -69,34 +69,18 @@ def internal_work(mesh, r, R, eps0, C, tangent=True, Z=None):
     ps = point_state(psi, dpsi, drho, eps0, C, second=tangent)
     ne, nq = mesh.dx.shape
     dx = mesh.dx[..., None, None]
-    At = np.swapaxes(ps.A, -1, -2)                               # (ne, nq, 9, 6)
-    Zt = np.swapaxes(Z, -1, -2)                                  # (ne, nq, 24, 9)
+    Zs = Z.reshape(ne, nq * 9, 24)                             # points stacked
     # gradient in local dofs: g = sum_q dx Z^T A^T S
-    g = (dx * (Zt @ (At @ ps.S[..., None]))).sum(axis=1)[..., 0]  # (ne, 24)
+    AtS = (dx * (np.swapaxes(ps.A, -1, -2) @ ps.S[..., None])).reshape(ne, nq * 9, 1)
+    g = (np.swapaxes(Zs, 1, 2) @ AtS)[..., 0]                  # (ne, 24)
     B, P = chart(loc)
     fe = (np.swapaxes(B, 1, 2) @ g[..., None])[..., 0]
     energy = float(np.sum(mesh.dx * ps.W))
     K = None
     if tangent:
-        K9 = At @ (C @ ps.A) + ps.G                              # (ne, nq, 9, 9)
-        H = (dx * (Zt @ (K9 @ Z))).sum(axis=1)                    # (ne, 24, 24)
+        K9 = np.swapaxes(ps.A, -1, -2) @ (C @ ps.A) + ps.G      # (ne, nq, 9, 9)
+        H = np.swapaxes(Zs, 1, 2) @ (dx * (K9 @ Z)).reshape(ne, nq * 9, 24)
         Ke = np.swapaxes(B, 1, 2) @ H @ B + chart_curvature(loc, P, g)
         K = mesh.assemble_matrix(Ke)
     return InternalWork(force=mesh.assemble_vector(fe), matrix=K, energy=energy,
                         max_local_rotation=float(np.linalg.norm(loc.psi, axis=-1).max()))
-
-
-def roundoff_force_scale(mesh, r, R, eps0, C, Z=None):
-    """Norm of the nodal forces that a unit error in every strain component
-    would produce: machine epsilon times this is the round-off floor of the
-    assembled residual (stiff axial and shear terms set it, not the loads)."""
-    if Z is None:
-        Z = shape_operator(mesh)
-    loc = local_coordinates(r[mesh.nodes], R[mesh.nodes])
-    psi, dpsi, drho = interpolate(loc, mesh.N, mesh.dN)
-    ps = point_state(psi, dpsi, drho, eps0, C, second=False)
-    unit = np.abs(C).sum(axis=1)
-    AtS = np.abs(np.swapaxes(ps.A, -1, -2)) @ unit                # (ne, nq, 9)
-    g = (mesh.dx[..., None, None] * (np.abs(np.swapaxes(Z, -1, -2)) @ AtS[..., None])).sum(axis=1)[..., 0]
-    B, _ = chart(loc)
-    return float(np.linalg.norm(mesh.assemble_vector(np.einsum("eji,ej->ei", np.abs(B), g))))

@@ -193,11 +193,21 @@ class Result:
     # output ------------------------------------------------------------------
     def point_data(self, step=-1, per_element=8):
         f = self.sample(per_element, step)
-        return f, dict(arclength=f["s"], n=f["n"], m=f["m"], v=f["v"], u=f["u"],
-                       twist=f["u"][:, 2] - f["u0"][:, 2])
+        data = dict(arclength=f["s"], n=f["n"], m=f["m"], v=f["v"], u=f["u"],
+                    twist=f["u"][:, 2] - f["u0"][:, 2])
+        c = self.steps[step].contact
+        if self.rod.contact is not None:
+            fc = np.zeros(len(f["s"]))
+            if c is not None and c.s.size:
+                k = np.abs(f["s"][None, :] - c.s[:, None]).argmin(axis=1)
+                np.maximum.at(fc, k, c.force)
+            data["contact_force"] = fc
+        return f, data
 
     def write_vtu(self, path, step=-1, per_element=8):
-        """Write one step as a VTU polyline with frames and resultants."""
+        """Write one step as a VTU polyline with frames and resultants; with
+        contact, the point data ``contact_force`` holds f_N (per unit length)
+        at the sample nearest to each active contact point."""
         from .export import write_vtu
         f, pdata = self.point_data(step, per_element)
         return write_vtu(path, f["r"], f["R"], pdata)
@@ -212,10 +222,22 @@ class Result:
                               point_data=pdata))
         return write_series(directory, basename, steps)
 
+    def contact_points(self, step=-1):
+        """Positions of the active contact (slave) points of a step, (m, 3)."""
+        c = self.steps[step].contact
+        if c is None or c.s.size == 0:
+            return np.zeros((0, 3))
+        return self.evaluate(c.s, step)["r"]
+
     def render(self, filename, step=-1, radius=None, per_element=8, **kwargs):
-        """Offscreen PNG of the rod as a tube with a stripe along ``d1``."""
+        """Offscreen PNG of the rod as a tube with a stripe along ``d1``;
+        active contact points are marked (unless ``contact_points`` is given)."""
         from .render import render_rod
         f = self.sample(per_element, step)
         if radius is None:
             radius = self.rod.section.radius or 0.01 * self.rod.length
+        if "contact_points" not in kwargs:
+            pts = self.contact_points(step)
+            if len(pts):
+                kwargs["contact_points"] = pts
         return render_rod(filename, f["r"], f["R"], radius, **kwargs)
