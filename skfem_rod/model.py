@@ -261,14 +261,19 @@ class Rod:
                 + ". Add a support (clamp, pin, fix_rotation or prescribe_*) that "
                 "removes them.")
 
-    def solve(self, n_steps=1, **options):
-        """Solve the equilibrium along the load path ``lam`` in (0, 1].
+    def solve(self, n_steps=1, path=None, **options):
+        """Solve the equilibrium along the load path.
 
         Parameters
         ----------
         n_steps : int
-            Number of equal load steps (steps are cut automatically when
+            Number of equal pseudo-time steps (cut automatically when
             Newton fails).
+        path : sequence of float, optional
+            Load factors reached at equally spaced pseudo-times, starting at
+            0: ``(0, 1)`` (default) loads proportionally, ``(0, 1, 0)`` loads
+            and unloads, ``(0, 1, 0.5)`` ...  All loads and prescribed
+            motions are multiplied by the load factor.
         **options
             See :class:`skfem_rod.solver.SolverOptions` (``rtol``,
             ``max_iterations``, ``line_search``, ``min_step``, ...).
@@ -280,4 +285,4 @@ class Rod:
             ``result.message`` say whether and where it stopped.
         """
         from .solver import solve
-        return solve(self, n_steps=n_steps, **options)
+        return solve(self, n_steps=n_steps, path=path, **options)

@@ -19,6 +19,7 @@ class Step:
     energy: float                  # strain energy
     reactions: dict                # node -> (force (3,), moment (3,))
     contact: object = None         # ContactState of the step (contact on only)
+    time: float = 0.0              # pseudo-time along the load path
 
 
 @dataclass
@@ -67,7 +68,7 @@ class Result:
         self.log = []
 
     # building ----------------------------------------------------------
-    def append(self, lam, r, R, info):
+    def append(self, lam, r, R, info, time=None):
         res = info.get("res")
         reactions = {}
         for n in self.rod.supports:
@@ -94,7 +95,8 @@ class Result:
                                iterations=int(info["iterations"]),
                                residual_history=list(info["history"]),
                                energy=float(iw.energy) if iw is not None else 0.0,
-                               reactions=reactions, contact=contact))
+                               reactions=reactions, contact=contact,
+                               time=float(lam if time is None else time)))
 
     def finish(self, converged, message):
         self.converged = bool(converged)

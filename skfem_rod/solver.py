@@ -250,10 +250,26 @@ def newton(system, r, R, lam, prescribed, opts):
                                     f"(residual {history[-1]:.3e})")
 
 
-def solve(rod, n_steps=1, **kwargs):
-    """Load-step the rod from ``lam = 0`` to ``1``; see :meth:`Rod.solve`."""
+def _load_path(path):
+    """Piecewise-linear load factor over pseudo-time ``t`` in [0, 1]: the
+    values ``path`` are reached at equally spaced times (default 0 -> 1)."""
+    p = np.asarray([0.0, 1.0] if path is None else path, dtype=float)
+    if p.ndim != 1 or p.size < 2 or not np.all(np.isfinite(p)):
+        raise ValueError(f"path must be a list of >= 2 finite load factors, got {path!r}")
+    if p[0] != 0.0:
+        raise ValueError(f"path must start at load factor 0 (the reference), got {p[0]!r}")
+    if np.any(np.diff(p) == 0):
+        raise ValueError(f"consecutive path values must differ, got {p.tolist()}")
+    times = np.linspace(0.0, 1.0, p.size)
+    return times, p
+
+
+def solve(rod, n_steps=1, path=None, **kwargs):
+    """Step the rod along the load path; see :meth:`Rod.solve`."""
     if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
         raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    times, values = _load_path(path)
+    lam_of = lambda t: float(np.interp(t, times, values))         # noqa: E731
     opts = make_options(kwargs)
     rod.check_constraints()
     system = _System(rod)
@@ -263,37 +279,43 @@ def solve(rod, n_steps=1, **kwargs):
     if not ok:
         result.finish(False, f"the unloaded reference is not in equilibrium: {info['reason']}")
         return result
-    result.append(0.0, r, R, info)
-    # largest prescribed rotation sets an upper bound on the step
+    result.append(0.0, r, R, info, time=0.0)
+    # the largest prescribed rotation per step bounds the pseudo-time step
     rot = max([np.linalg.norm(s.rotation_vector) for s in rod.supports.values()] + [0.0])
+    slope = np.abs(np.diff(values) / np.diff(times)).max()
     nominal = 1.0 / n_steps
     if rot > 0:
-        nominal = min(nominal, opts.max_rotation_step / rot)
-    lam, dlam, streak = 0.0, nominal, 0
-    while lam < 1.0 - 1e-14:
-        step = min(dlam, 1.0 - lam)
-        ok, r_new, R_new, info = _step(system, r, R, lam + step,
-                                       _prescribed_increment(rod, step), opts)
+        nominal = min(nominal, opts.max_rotation_step / (rot * slope))
+    t, dt, streak = 0.0, nominal, 0
+    while t < 1.0 - 1e-14:
+        nxt = times[times > t + 1e-14][0]            # do not step over a turning point
+        step = min(dt, nxt - t)
+        t_new = nxt if step == nxt - t else t + step
+        lam, lam_new = lam_of(t), lam_of(t_new)
+        ok, r_new, R_new, info = _step(system, r, R, lam_new,
+                                       _prescribed_increment(rod, lam_new - lam), opts)
         if ok:
-            lam += step
+            t = t_new
             r, R = r_new, R_new
-            result.append(lam, r, R, info)
+            result.append(lam_new, r, R, info, time=t)
             if info.get("uzawa_note"):
-                result.log.append(f"step to lam={lam:.6g}: {info['uzawa_note']}")
+                result.log.append(f"step to lam={lam_new:.6g}: {info['uzawa_note']}")
             streak += 1
             if streak >= 2:          # grow back only after two successes in a row
-                dlam = min(dlam * opts.grow, nominal)
+                dt = min(dt * opts.grow, nominal)
         else:
             streak = 0
-            result.log.append(f"step to lam={lam + step:.6g} failed: {info['reason']}; "
-                              "cutting the step")
-            dlam = 0.5 * step
-            if dlam < opts.min_step:
-                result.finish(False, f"stopped at load factor {lam:.6g}: the step to "
-                              f"{lam + step:.6g} failed ({info['reason']}) and the step "
-                              f"size fell below min_step={opts.min_step:g}")
+            result.log.append(f"step to lam={lam_new:.6g} (t={t_new:.6g}) failed: "
+                              f"{info['reason']}; cutting the step")
+            dt = 0.5 * step
+            if dt < opts.min_step:
+                result.finish(False, f"stopped at load factor {lam:.6g} (pseudo-time "
+                              f"{t:.6g}): the step to {lam_new:.6g} failed "
+                              f"({info['reason']}) and the step size fell below "
+                              f"min_step={opts.min_step:g}")
                 return result
-    result.finish(True, f"converged: {len(result.steps) - 1} steps to load factor 1")
+    result.finish(True, f"converged: {len(result.steps) - 1} steps to the end of the "
+                  f"load path (load factor {lam_of(1.0):g})")
     return result
 
 

@@ -234,7 +234,8 @@ def test_load_step_that_cannot_converge_keeps_converged_steps():
     res = rod.solve(20, max_iterations=3, min_step=0.02)
     assert res.converged is False
     msg = res.message
-    m = re.match(r"stopped at load factor ([0-9.e+-]+): the step to ([0-9.e+-]+) failed "
+    m = re.match(r"stopped at load factor ([0-9.e+-]+) \(pseudo-time [0-9.e+-]+\): the step "
+                 r"to ([0-9.e+-]+) failed "
                  r"\((.+)\) and the step size fell below min_step=0.02", msg)
     assert m, msg
     lam_stop, lam_try, reason = float(m.group(1)), float(m.group(2)), m.group(3)

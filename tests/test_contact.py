@@ -127,3 +127,28 @@ def test_broad_phase_candidates_grow_linearly():
         counts.append(pairs.n_candidates)
     slope = np.polyfit(np.log(sizes), np.log(counts), 1)[0]
     assert 0.85 <= slope <= 1.15, (counts, slope)
+
+
+def test_contact_appears_and_disappears_along_a_load_unload_path():
+    """Press the hairpin closed and release it (path 0 -> 1 -> 0): contact
+    appears on loading, disappears on unloading, and the rod returns to its
+    reference shape (elastic, frictionless: no hysteresis)."""
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 40)
+    rod.clamp("start").add_force("end", [0, -0.6, 0]).enable_contact()
+    res = rod.solve(n_steps=12, path=[0, 1, 0])
+    assert res.converged, res.message
+    active = np.array([st.contact.force.size for st in res.steps])
+    lam = np.array([st.load_factor for st in res.steps])
+    assert active[0] == 0 and active[-1] == 0
+    assert active[np.argmax(lam)] > 0
+    on = np.flatnonzero(active > 0)
+    # contact is active in one contiguous stretch around the peak load
+    assert np.all(np.diff(on) == 1)
+    np.testing.assert_allclose(res.steps[-1].r, rod.r0, atol=1e-9)
+    # loading and unloading pass through the same states (no dissipation)
+    k_up = np.flatnonzero((np.array([st.time for st in res.steps]) < 0.5) & (lam > 0.4))[0]
+    k_dn = [k for k in range(len(lam)) if res.steps[k].time > 0.5
+            and abs(lam[k] - lam[k_up]) < 1e-12]
+    if k_dn:
+        np.testing.assert_allclose(res.steps[k_dn[0]].r, res.steps[k_up].r, atol=1e-6)
