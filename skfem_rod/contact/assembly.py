@@ -56,13 +56,18 @@ def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     force = np.bincount(dofs.ravel(), weights=fe.reshape(m, 24).ravel(), minlength=n)
     K = None
     if tangent:
-        r_m = r[mesh.nodes[pairs.m_elem]]                   # (m, 4, 3)
-        y1 = np.einsum("Im,mIc->mc", dNm, r_m)
-        y2 = np.einsum("Im,mIc->mc", d2Nm, r_m)
-        l = pairs.distance
+        keep = np.flatnonzero(act)                          # stiffness of active pairs
+        m = keep.size
+        P, Q, Nv, b, w, fa, dfa, dofs = (P[keep], Q[keep], Nv[keep], b[keep], w[keep],
+                                         fN[keep], dfN[keep], dofs[keep])
+        dNm, d2Nm = dNm[:, keep], d2Nm[:, keep]
+        r_m = r[mesh.nodes[pairs.m_elem[keep]]]             # (m, 4, 3)
+        y1 = (dNm.T[:, None, :] @ r_m)[:, 0]
+        y2 = (d2Nm.T[:, None, :] @ r_m)[:, 0]
+        l = pairs.distance[keep]
         xy = Nv * l[:, None]
         den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
-        use = pairs.interior & (den > 1e-8 * np.sum(y1 * y1, axis=1))
+        use = pairs.interior[keep] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
         Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
         a = (P[:, :, None] * (y1 / l[:, None])[:, None, :]
              + Q[:, :, None] * Nv[:, None, :]).reshape(m, 24)
@@ -71,11 +76,9 @@ def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True):
         PP = P[:, :, None] * P[:, None, :]                      # (m, 8, 8)
         ddl = (PP[:, :, None, :, None] * proj[:, None, :, None, :]).reshape(m, 24, 24) / l[:, None, None]
         ddl -= (Om * l)[:, None, None] * a[:, :, None] * a[:, None, :]
-        Ke = w[:, None, None] * (dfN[:, None, None] * bb[:, :, None] * bb[:, None, :]
-                                 - fN[:, None, None] * ddl)
-        Ke = Ke[act]
-        dd = dofs[act]
-        rows = np.repeat(dd, 24, axis=1).ravel()
-        cols = np.tile(dd, (1, 24)).ravel()
+        Ke = w[:, None, None] * (dfa[:, None, None] * bb[:, :, None] * bb[:, None, :]
+                                 - fa[:, None, None] * ddl)
+        rows = np.repeat(dofs, 24, axis=1).ravel()
+        cols = np.tile(dofs, (1, 24)).ravel()
         K = sp.csc_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
     return energy, force, K, fN

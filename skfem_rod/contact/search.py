@@ -73,11 +73,9 @@ class Pairs:
 
 def _curve(r_el, xi):
     """Positions and first/second xi-derivatives of element curves."""
-    N, dN, d2N = shape_functions(xi)                 # (4, m)
-    y = np.einsum("Im,mIc->mc", N, r_el)
-    y1 = np.einsum("Im,mIc->mc", dN, r_el)
-    y2 = np.einsum("Im,mIc->mc", d2N, r_el)
-    return y, y1, y2
+    Nall = np.stack(shape_functions(xi), axis=-1)    # (4, m, 3): N, dN, d2N
+    Y = np.swapaxes(Nall, 0, 1).transpose(0, 2, 1) @ r_el   # (m, 3, 3)
+    return Y[:, 0], Y[:, 1], Y[:, 2]
 
 
 def project(x, r_el, iterations=12):
@@ -91,14 +89,21 @@ def project(x, r_el, iterations=12):
     d2 = np.stack([np.sum((_curve(r_el, np.full(m, t))[0] - x) ** 2, axis=1)
                    for t in samples])
     xi = samples[np.argmin(d2, axis=0)]
+    todo = np.arange(m)
     for _ in range(iterations):
-        y, y1, y2 = _curve(r_el, xi)
-        f = np.sum((y - x) * y1, axis=1)
-        fp = np.sum(y1 * y1, axis=1) + np.sum((y - x) * y2, axis=1)
+        y, y1, y2 = _curve(r_el[todo], xi[todo])
+        xt = x[todo]
+        f = np.sum((y - xt) * y1, axis=1)
+        fp = np.sum(y1 * y1, axis=1) + np.sum((y - xt) * y2, axis=1)
         # Newton where the distance is locally convex, a gradient step else
         step = np.where(fp > 1e-12 * np.sum(y1 * y1, axis=1), f / np.where(fp == 0, 1, fp),
                         0.25 * np.sign(f))
-        xi = np.clip(xi - step, 0.0, 1.0)
+        new = np.clip(xi[todo] - step, 0.0, 1.0)
+        moved = np.abs(new - xi[todo]) > 1e-15
+        xi[todo] = new
+        todo = todo[moved]
+        if todo.size == 0:
+            break
     y, y1, _ = _curve(r_el, xi)
     f = np.abs(np.sum((y - x) * y1, axis=1))
     interior = (xi > 0.0) & (xi < 1.0) & (f <= 1e-9 * (np.linalg.norm(y1, axis=1)
