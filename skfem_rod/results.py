@@ -224,6 +224,17 @@ class Result:
                               point_data=pdata))
         return write_series(directory, basename, steps)
 
+    def topology(self, step=-1, per_element=16):
+        """Twist, writhe and link (in turns) of the centreline and the ribbon
+        of ``d1`` at a step (:func:`skfem_rod.topology.topology`); an open
+        rod is closed far away along its end tangents (the closure of rods
+        with held ends), so ``link`` is an integer when the end frames are
+        rotated by whole turns."""
+        from .topology import topology
+        f = self.sample(per_element, step)
+        return topology(f["r"], f["R"][:, :, 0], t_start=f["R"][0][:, 2],
+                        t_end=f["R"][-1][:, 2])
+
     def contact_points(self, step=-1):
         """Positions of the active contact (slave) points of a step, (m, 3)."""
         c = self.steps[step].contact
