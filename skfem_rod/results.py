@@ -225,15 +225,23 @@ class Result:
         return write_series(directory, basename, steps)
 
     def topology(self, step=-1, per_element=16):
-        """Twist, writhe and link (in turns) of the centreline and the ribbon
-        of ``d1`` at a step (:func:`skfem_rod.topology.topology`); an open
-        rod is closed far away along its end tangents (the closure of rods
-        with held ends), so ``link`` is an integer when the end frames are
-        rotated by whole turns."""
+        """Twist, writhe and link (in turns) of the rod at a step.
+
+        The open rod is closed far away along its end tangents (the standard
+        closure for rods with held ends, :func:`skfem_rod.topology.closure`),
+        which adds no writhe; ``twist`` is the twist of the rod itself (the
+        closure's compensating partial turn, ``closure_twist``, removed) and
+        ``link = twist + writhe``: for a rod whose ends are turned by
+        ``phi`` it equals ``phi / 2 pi`` (Calugareanu-White).  ``link_gauss``
+        is the Gauss linking number of the closed ribbon (an integer).
+        """
+        from dataclasses import replace
         from .topology import topology
         f = self.sample(per_element, step)
-        return topology(f["r"], f["R"][:, :, 0], t_start=f["R"][0][:, 2],
-                        t_end=f["R"][-1][:, 2])
+        t = topology(f["r"], f["R"][:, :, 0], t_start=f["R"][0][:, 2],
+                     t_end=f["R"][-1][:, 2])
+        tw = t.twist - t.closure_twist
+        return replace(t, twist=tw, link=tw + t.writhe)
 
     def contact_points(self, step=-1):
         """Positions of the active contact (slave) points of a step, (m, 3)."""
