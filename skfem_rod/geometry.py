@@ -15,18 +15,7 @@ from the first node.
 import numpy as np
 
 from .rotations import expm
-
-
-def _positive(name, value):
-    """``value`` as a float; ValueError naming ``name`` unless it is a finite
-    number > 0."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
+from .validation import positive
 
 
 def _unit(v, name):
@@ -73,7 +62,7 @@ class Shape:
     """A reference shape: callable ``shape(s) -> (r0, R0)`` with a length."""
 
     def __init__(self, length, func, name="shape"):
-        self.length = _positive("length", length)
+        self.length = positive("length", length)
         self._func = func
         self.name = name
 
@@ -113,8 +102,8 @@ def arc(radius, angle, start=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
     """Circular arc of ``radius`` subtending ``angle`` (rad), starting at
     ``start`` with unit ``tangent`` and curving toward ``toward``.
     ``d1`` is the inward normal (toward the centre), ``d2 = d3 x d1``."""
-    radius = _positive("radius", radius)
-    angle = _positive("angle", angle)
+    radius = positive("radius", radius)
+    angle = positive("angle", angle)
     t0 = _unit(tangent, "tangent")
     n0 = np.asarray(toward, float) - np.dot(toward, t0) * t0
     n0 = _unit(n0, "toward (component normal to tangent)")
@@ -133,9 +122,9 @@ def helix(radius, pitch, turns, axis_start=(0.0, 0.0, 0.0)):
     """Helix about ``+z`` of ``radius``, rise ``pitch`` per turn, ``turns``
     turns, starting at ``(radius, 0, 0)`` (+ ``axis_start``); ``d1`` is the
     principal normal (toward the axis)."""
-    radius = _positive("radius", radius)
-    pitch = _positive("pitch", pitch)
-    turns = _positive("turns", turns)
+    radius = positive("radius", radius)
+    pitch = positive("pitch", pitch)
+    turns = positive("turns", turns)
     c = pitch / (2 * np.pi)
     k = np.hypot(radius, c)
     length = 2 * np.pi * turns * k
@@ -156,8 +145,8 @@ def curve(r_of_s, length, d1_of_s=None, ds=None):
     ``d1_of_s`` gives the first director (else parallel transport)."""
     if not callable(r_of_s):
         raise ValueError("r_of_s must be a callable s -> (n, 3) positions")
-    length = _positive("length", length)
-    h = 1e-5 * length if ds is None else _positive("ds", ds)
+    length = positive("length", length)
+    h = 1e-5 * length if ds is None else positive("ds", ds)
 
     def f(s):
         r = np.asarray(r_of_s(s), float)

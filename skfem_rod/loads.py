@@ -22,15 +22,7 @@ import scipy.sparse as sp
 from skfem import LinearForm, asm
 
 from .rotations import hat
-
-
-def finite_vector(name, value):
-    v = np.asarray(value, dtype=float)
-    if v.shape != (3,):
-        raise ValueError(f"{name} must be a 3-vector, got shape {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} must be finite (no NaN or inf), got {v.tolist()}")
-    return v
+from .validation import finite_vector  # noqa: F401  (re-exported)
 
 
 @dataclass

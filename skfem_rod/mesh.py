@@ -17,12 +17,7 @@ from skfem.quadrature import get_quadrature
 from skfem.refdom import RefLine
 
 from .element import ElementLineP3, ORDER_BY_POSITION
-
-
-def _check_count(name, value, minimum):
-    if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-            and value >= minimum):
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+from .validation import count
 
 
 @dataclass
@@ -56,8 +51,8 @@ class RodMesh:
     def __post_init__(self):
         if not (np.isfinite(self.length) and self.length > 0):
             raise ValueError(f"length must be a finite number > 0, got {self.length!r}")
-        _check_count("n_elements", self.n_elements, 1)
-        _check_count("n_quad", self.n_quad, 1)
+        count("n_elements", self.n_elements, 1)
+        count("n_quad", self.n_quad, 1)
         if self.vertices is None:
             self.vertices = np.linspace(0.0, self.length, self.n_elements + 1)
         v = np.asarray(self.vertices, dtype=float)

@@ -14,20 +14,13 @@ import numpy as np
 
 from .assembly import reference_strains
 from .geometry import Shape
-from .loads import PointLoad, DistributedLoad, finite_vector
+from .loads import PointLoad, DistributedLoad
+from .validation import finite_vector
 from .mesh import RodMesh
 from .section import Section
 
 
-def _vector(name, value):
-    """A finite 3-vector (``finite_vector``), with a ValueError naming ``name``
-    also when ``value`` is not numeric."""
-    try:
-        np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite 3-vector of numbers, "
-                         f"got {value!r}") from None
-    return finite_vector(name, value)
+_vector = finite_vector
 
 
 def _components(components):

@@ -9,17 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .validation import positive
+
 _NAMES = ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")
-
-
-def _positive(name, value):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number > 0, got {value!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
 
 
 @dataclass(frozen=True)
@@ -52,9 +44,9 @@ class Section:
 
     def __post_init__(self):
         for n in _NAMES:
-            object.__setattr__(self, n, _positive(n, getattr(self, n)))
+            object.__setattr__(self, n, positive(n, getattr(self, n)))
         if self.radius is not None:
-            object.__setattr__(self, "radius", _positive("radius", self.radius))
+            object.__setattr__(self, "radius", positive("radius", self.radius))
         if self.matrix is not None:
             C = np.array(self.matrix, dtype=float)
             if C.shape != (6, 6) or not np.all(np.isfinite(C)):
@@ -70,8 +62,8 @@ class Section:
         """Solid circular section of ``radius`` from Young's modulus ``E`` and
         Poisson's ratio ``nu`` (``-1 < nu < 0.5``).  The shear coefficient
         defaults to Cowper's ``6 (1 + nu) / (7 + 6 nu)``."""
-        E = _positive("E", E)
-        radius = _positive("radius", radius)
+        E = positive("E", E)
+        radius = positive("radius", radius)
         try:
             nu_f = float(nu)
         except (TypeError, ValueError):
@@ -80,7 +72,7 @@ class Section:
             raise ValueError(f"nu must be a number in (-1, 0.5), got {nu!r}")
         nu = nu_f
         k = (6 * (1 + nu) / (7 + 6 * nu) if shear_coefficient is None
-             else _positive("shear_coefficient", shear_coefficient))
+             else positive("shear_coefficient", shear_coefficient))
         G = E / (2 * (1 + nu))
         A = np.pi * radius**2
         I = np.pi * radius**4 / 4
