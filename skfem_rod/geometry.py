@@ -31,7 +31,11 @@ def frames_from(t, d1):
     guesses (orthogonalized against ``t``)."""
     t = t / np.linalg.norm(t, axis=-1, keepdims=True)
     d1 = d1 - np.sum(d1 * t, axis=-1, keepdims=True) * t
-    d1 = d1 / np.linalg.norm(d1, axis=-1, keepdims=True)
+    n1 = np.linalg.norm(d1, axis=-1, keepdims=True)
+    if np.any(~(n1 > 1e-12)):
+        raise ValueError("d1 must not be parallel to the tangent (it is orthogonalized "
+                         "against it to build the frame)")
+    d1 = d1 / n1
     d2 = np.cross(t, d1)
     return np.stack([d1, d2, t], axis=-1)
 

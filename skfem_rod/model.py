@@ -254,7 +254,7 @@ class Rod:
                 + ". Add a support (clamp, pin, fix_rotation or prescribe_*) that "
                 "removes them.")
 
-    def solve(self, n_steps=1, path=None, **options):
+    def solve(self, n_steps=1, path=None, callback=None, **options):
         """Solve the equilibrium along the load path.
 
         Parameters
@@ -267,6 +267,9 @@ class Rod:
             0: ``(0, 1)`` (default) loads proportionally, ``(0, 1, 0)`` loads
             and unloads, ``(0, 1, 0.5)`` ...  All loads and prescribed
             motions are multiplied by the load factor.
+        callback : callable, optional
+            ``callback(result, k)`` after each converged step ``k`` (e.g. a
+            progress line).
         **options
             See :class:`skfem_rod.solver.SolverOptions` (``rtol``,
             ``max_iterations``, ``line_search``, ``min_step``, ...).
@@ -278,4 +281,4 @@ class Rod:
             ``result.message`` say whether and where it stopped.
         """
         from .solver import solve
-        return solve(self, n_steps=n_steps, path=path, **options)
+        return solve(self, n_steps=n_steps, path=path, callback=callback, **options)

@@ -220,7 +220,7 @@ class Result:
         steps = []
         for k, st in enumerate(self.steps):
             f, pdata = self.point_data(k, per_element)
-            steps.append(dict(time=st.load_factor, points=f["r"], frames=f["R"],
+            steps.append(dict(time=st.time, points=f["r"], frames=f["R"],
                               point_data=pdata))
         return write_series(directory, basename, steps)
 

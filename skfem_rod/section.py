@@ -73,9 +73,11 @@ class Section:
         nu = nu_f
         k = (6 * (1 + nu) / (7 + 6 * nu) if shear_coefficient is None
              else positive("shear_coefficient", shear_coefficient))
+        E, radius = np.float64(E), np.float64(radius)     # overflow -> inf -> ValueError
         G = E / (2 * (1 + nu))
-        A = np.pi * radius**2
-        I = np.pi * radius**4 / 4
+        with np.errstate(over="ignore"):
+            A = np.pi * radius**2
+            I = np.pi * radius**4 / 4
         return cls(EA=E * A, GA1=k * G * A, GA2=k * G * A, EI1=E * I, EI2=E * I,
                    GJ=G * 2 * I, radius=radius)
 

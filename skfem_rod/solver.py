@@ -68,12 +68,14 @@ class SolverOptions:
         for name in ("rtol", "increment_tol", "min_step", "max_rotation_step",
                      "max_spin_update", "max_growth"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         for name in ("max_iterations", "max_backtracks"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and v >= 1):
+            if isinstance(v, bool) or not (isinstance(v, (int, np.integer)) and v >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+        if not isinstance(self.line_search, bool):
+            raise ValueError(f"line_search must be true or false, got {self.line_search!r}")
         if not (np.isfinite(self.grow) and self.grow >= 1):
             raise ValueError(f"grow must be a number >= 1, got {self.grow!r}")
 
@@ -279,8 +281,9 @@ def _load_path(path):
     return times, p
 
 
-def solve(rod, n_steps=1, path=None, **kwargs):
-    """Step the rod along the load path; see :meth:`Rod.solve`."""
+def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
+    """Step the rod along the load path; see :meth:`Rod.solve`.
+    ``callback(result, k)`` is called after each converged step ``k``."""
     if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
         raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
     times, values = _load_path(path)
@@ -295,6 +298,8 @@ def solve(rod, n_steps=1, path=None, **kwargs):
         result.finish(False, f"the unloaded reference is not in equilibrium: {info['reason']}")
         return result
     result.append(0.0, r, R, info, time=0.0)
+    if callback is not None:
+        callback(result, 0)
     # the largest prescribed rotation per step bounds the pseudo-time step
     rot = max([np.linalg.norm(s.rotation_vector) for s in rod.supports.values()] + [0.0])
     slope = np.abs(np.diff(values) / np.diff(times)).max()
@@ -313,6 +318,8 @@ def solve(rod, n_steps=1, path=None, **kwargs):
             t = t_new
             r, R = r_new, R_new
             result.append(lam_new, r, R, info, time=t)
+            if callback is not None:
+                callback(result, len(result.steps) - 1)
             if info.get("uzawa_note"):
                 result.log.append(f"step to lam={lam_new:.6g}: {info['uzawa_note']}")
             streak += 1

@@ -38,11 +38,14 @@ class ContactOptions:
     def __post_init__(self):
         for name in ("radius", "penalty", "exclusion", "tolerance"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
+                                           and np.isfinite(v) and v > 0):
                 raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")
         for name in ("n_slave", "max_uzawa"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and v >= 1):
+            if isinstance(v, bool) or not (isinstance(v, (int, np.integer)) and v >= 1):
                 raise ValueError(f"contact {name} must be an integer >= 1, got {v!r}")
         if self.margin is None:
             self.margin = self.radius
+        if not (np.isfinite(self.margin) and self.margin >= 0):
+            raise ValueError(f"contact margin must be a finite number >= 0, got {self.margin!r}")

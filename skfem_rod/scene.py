@@ -1,0 +1,933 @@
+"""Scenes: a rod problem described in a TOML file, validated on load.
+
+A scene names the reference shape, the section, the supports, the loads,
+contact, the solver controls and the outputs; ``docs/scenes.md`` is the
+reference of every key.  :func:`load_scene` checks **every** key before
+anything is built or written: unknown keys (with the closest valid name),
+wrong types, values out of range, NaN and inf are reported with the key's
+table path (``support[1].where``), the value and what is allowed, all
+problems at once; then the rod is built, which reports the boundary
+conditions the :class:`~skfem_rod.Rod` itself rejects (a rigid-body mode
+left free, an arclength that is not a node) and two supports that would
+prescribe the same component of one node.
+
+>>> scene = load_scene({
+...     "rod": {"geometry": {"type": "straight", "length": 1.0}, "n_elements": 4},
+...     "section": {"EA": 1e4, "GA1": 1e4, "GA2": 1e4, "EI1": 1.0, "EI2": 1.0, "GJ": 0.8},
+...     "support": [{"where": "start", "kind": "clamp"}],
+...     "load": [{"kind": "moment", "where": "end", "vector": [0.0, 0.0, 1.0]}],
+...     "solver": {"n_steps": 2}})
+>>> scene.solve().converged
+True
+>>> load_scene({"rod": {"n_element": 4}})         # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+skfem_rod.scene.SceneError: 4 problems in the scene:
+  - rod.n_element is not a known key; did you mean "n_elements"? ...
+"""
+import difflib
+import json
+import math
+import numbers
+import os
+import pathlib
+import time
+from dataclasses import MISSING, dataclass, fields
+
+import numpy as np
+
+__all__ = ["Scene", "SceneError", "load_scene", "read_toml"]
+
+#: sanity limits of what a scene may ask for (beyond them: the Python API)
+MAX_ELEMENTS = 100_000
+MAX_QUAD = 10
+MAX_POINTS = 10_000
+CAMERAS = ("iso", "xy", "xz", "yz", "yx", "zx", "zy")
+
+
+class SceneError(ValueError):
+    """Invalid scene: ``problems`` lists one message per problem."""
+
+    def __init__(self, problems):
+        self.problems = list(problems)
+        if len(self.problems) == 1:
+            msg = self.problems[0]
+        else:
+            msg = (f"{len(self.problems)} problems in the scene:\n"
+                   + "\n".join("  - " + p for p in self.problems))
+        super().__init__(msg)
+
+
+# ---------------------------------------------------------------------------
+# value checks: each returns the normalized value or raises _Bad
+# ---------------------------------------------------------------------------
+class _Bad(Exception):
+    def __init__(self, note=""):
+        self.note = note
+
+
+def _show(v, limit=80):
+    """A value as it would read in TOML (shortened)."""
+    if isinstance(v, (bool, np.bool_)):
+        s = "true" if v else "false"
+    elif isinstance(v, str):
+        s = json.dumps(v)
+    elif isinstance(v, numbers.Real):
+        f = float(v) if not isinstance(v, numbers.Integral) else None
+        s = (str(int(v)) if f is None else "nan" if math.isnan(f)
+             else ("inf" if f > 0 else "-inf") if math.isinf(f) else repr(f))
+    elif isinstance(v, (list, tuple, np.ndarray)):
+        s = "[" + ", ".join(_show(x, limit) for x in list(v)[:8]) \
+            + (", ..." if len(v) > 8 else "") + "]"
+    elif isinstance(v, dict):
+        s = "{" + ", ".join(f"{k} = {_show(x, limit)}" for k, x in list(v.items())[:4]) \
+            + (", ..." if len(v) > 4 else "") + "}"
+    else:
+        s = f"{v!r} ({type(v).__name__})"
+    return s if len(s) <= limit else s[:limit - 3] + "..."
+
+
+def _real(v):
+    """``v`` as a float (NaN/inf kept) or _Bad if it is not a real number."""
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+        raise _Bad()
+    try:
+        return float(v)
+    except (OverflowError, ValueError, TypeError):
+        raise _Bad() from None
+
+
+def _finite(v):
+    x = _real(v)
+    if not math.isfinite(x):
+        raise _Bad("NaN and inf are not allowed")
+    return x
+
+
+def _fmt(x):
+    return f"{x:g}"
+
+
+class Number:
+    def __init__(self, lo=None, hi=None, lo_open=True, hi_open=True):
+        self.lo, self.hi, self.lo_open, self.hi_open = lo, hi, lo_open, hi_open
+        if lo is not None and hi is not None:
+            self.expected = (f"a number in {'(' if lo_open else '['}{_fmt(lo)}, "
+                             f"{_fmt(hi)}{')' if hi_open else ']'}")
+        elif lo is not None:
+            self.expected = f"a finite number {'>' if lo_open else '>='} {_fmt(lo)}"
+        else:
+            self.expected = "a finite number"
+
+    def __call__(self, v):
+        x = _finite(v)
+        if self.lo is not None and (x < self.lo or (self.lo_open and x == self.lo)):
+            raise _Bad()
+        if self.hi is not None and (x > self.hi or (self.hi_open and x == self.hi)):
+            raise _Bad()
+        return x
+
+
+class Integer:
+    def __init__(self, lo, hi=None):
+        self.lo, self.hi = lo, hi
+        self.expected = (f"an integer in [{lo}, {hi}]" if hi is not None
+                         else f"an integer >= {lo}")
+
+    def __call__(self, v):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Integral):
+            raise _Bad()
+        if v < self.lo or (self.hi is not None and v > self.hi):
+            raise _Bad()
+        return int(v)
+
+
+class Boolean:
+    expected = "true or false"
+
+    def __call__(self, v):
+        if not isinstance(v, (bool, np.bool_)):
+            raise _Bad()
+        return bool(v)
+
+
+class Choice:
+    def __init__(self, *options):
+        self.options = options
+        self.expected = "one of " + ", ".join(json.dumps(o) for o in options)
+
+    def __call__(self, v):
+        if isinstance(v, str) and v in self.options:
+            return v
+        if isinstance(v, str):
+            close = difflib.get_close_matches(v, self.options, n=1)
+            raise _Bad(f'did you mean "{close[0]}"?' if close else "")
+        raise _Bad()
+
+
+class Text:
+    expected = "a non-empty string"
+
+    def __call__(self, v):
+        if not (isinstance(v, str) and v.strip()):
+            raise _Bad()
+        return v
+
+
+class Basename:
+    expected = "a file name stem (a non-empty string without / or \\)"
+
+    def __call__(self, v):
+        if not (isinstance(v, str) and v.strip()) or v in (".", "..") \
+                or any(c in v for c in "/\\" + os.sep):
+            raise _Bad()
+        return v
+
+
+def _seq(v):
+    if isinstance(v, np.ndarray):
+        return list(v)
+    if not isinstance(v, (list, tuple)):
+        raise _Bad()
+    return list(v)
+
+
+class Vector:
+    def __init__(self, nonzero=False):
+        self.nonzero = nonzero
+        self.expected = ("an array of 3 finite numbers, not all zero" if nonzero
+                         else "an array of 3 finite numbers [x, y, z]")
+
+    def __call__(self, v):
+        items = _seq(v)
+        if len(items) != 3:
+            raise _Bad()
+        out = [_finite(x) for x in items]
+        if self.nonzero and not any(out):
+            raise _Bad()
+        return out
+
+
+class Points:
+    def __init__(self, minimum=2, what="points"):
+        self.minimum = minimum
+        self.expected = (f"an array of {minimum} to {MAX_POINTS} {what} "
+                         "[x, y, z] of finite numbers")
+
+    def __call__(self, v):
+        items = _seq(v)
+        if not self.minimum <= len(items) <= MAX_POINTS:
+            raise _Bad(f"got {len(items)}")
+        out = []
+        for k, p in enumerate(items):
+            try:
+                out.append(Vector()(p))
+            except _Bad as bad:
+                raise _Bad(f"item {k} = {_show(p)} is not [x, y, z]"
+                           + (f" ({bad.note})" if bad.note else "")) from None
+        return out
+
+
+class Matrix6:
+    expected = "a 6 x 6 array (6 rows of 6 finite numbers)"
+
+    def __call__(self, v):
+        rows = _seq(v)
+        if len(rows) != 6:
+            raise _Bad()
+        out = []
+        for row in rows:
+            row = _seq(row)
+            if len(row) != 6:
+                raise _Bad()
+            out.append([_finite(x) for x in row])
+        return out
+
+
+class Where:
+    expected = '"start", "end" or an arclength >= 0 at a node'
+
+    def __call__(self, v):
+        if isinstance(v, str):
+            return Choice("start", "end")(v)
+        x = _finite(v)
+        if x < 0:
+            raise _Bad()
+        return x
+
+
+class Components:
+    expected = "a non-empty array of distinct axis indices 0, 1, 2 (x, y, z)"
+
+    def __call__(self, v):
+        items = [v] if isinstance(v, numbers.Integral) and not isinstance(v, bool) else _seq(v)
+        out = [Integer(0, 2)(c) for c in items]
+        if not out or len(set(out)) != len(out):
+            raise _Bad()
+        return sorted(out)
+
+
+class LoadPath:
+    expected = ("an array of >= 2 finite load factors starting at 0, "
+                "consecutive values different, e.g. [0, 1, 0]")
+
+    def __call__(self, v):
+        items = _seq(v)
+        if not 2 <= len(items) <= MAX_POINTS:
+            raise _Bad()
+        out = [_finite(x) for x in items]
+        if out[0] != 0:
+            raise _Bad("it must start at 0")
+        if any(a == b for a, b in zip(out, out[1:])):
+            raise _Bad("consecutive values must differ")
+        return out
+
+
+class WindowSize:
+    expected = "[width, height] in pixels, integers in [16, 8192]"
+
+    def __call__(self, v):
+        items = _seq(v)
+        if len(items) != 2:
+            raise _Bad()
+        return [Integer(16, 8192)(x) for x in items]
+
+
+# ---------------------------------------------------------------------------
+# the schema
+# ---------------------------------------------------------------------------
+_REQUIRED = object()
+
+
+@dataclass(frozen=True)
+class Key:
+    check: object
+    default: object = _REQUIRED
+    doc: str = ""
+
+
+POSITIVE = Number(0)
+VECTOR = Vector()
+
+GEOMETRY = {
+    "straight": {
+        "length": Key(POSITIVE, doc="rod length"),
+        "start": Key(VECTOR, [0.0, 0.0, 0.0], "position of s = 0"),
+        "direction": Key(Vector(nonzero=True), [1.0, 0.0, 0.0], "tangent d3"),
+        "d1": Key(Vector(nonzero=True), None,
+                  "first director (not parallel to direction); default: z x direction"),
+    },
+    "arc": {
+        "radius": Key(POSITIVE, doc="arc radius"),
+        "angle": Key(POSITIVE, doc="subtended angle (rad)"),
+        "start": Key(VECTOR, [0.0, 0.0, 0.0], "position of s = 0"),
+        "tangent": Key(Vector(nonzero=True), [1.0, 0.0, 0.0], "tangent at s = 0"),
+        "toward": Key(Vector(nonzero=True), [0.0, 1.0, 0.0],
+                      "direction the arc curves toward (not parallel to tangent)"),
+    },
+    "helix": {
+        "radius": Key(POSITIVE, doc="helix radius (about +z)"),
+        "pitch": Key(POSITIVE, doc="rise per turn"),
+        "turns": Key(POSITIVE, doc="number of turns"),
+        "axis_start": Key(VECTOR, [0.0, 0.0, 0.0], "point of the axis at s = 0"),
+    },
+    "polyline": {
+        "points": Key(Points(), doc="points a cubic spline passes through"),
+        "d1": Key(Points(what="directors"), None,
+                  "first director at each point (as many as points)"),
+    },
+}
+
+SECTIONS = {
+    "stiffness": {
+        **{n: Key(POSITIVE, doc=d) for n, d in (
+            ("EA", "axial stiffness"), ("GA1", "shear stiffness along d1"),
+            ("GA2", "shear stiffness along d2"), ("EI1", "bending stiffness about d1"),
+            ("EI2", "bending stiffness about d2"), ("GJ", "torsional stiffness"))},
+        "radius": Key(POSITIVE, None, "radius (contact, rendering)"),
+    },
+    "circle": {
+        "E": Key(POSITIVE, doc="Young's modulus"),
+        "nu": Key(Number(-1, 0.5), doc="Poisson's ratio"),
+        "radius": Key(POSITIVE, doc="radius of the solid circle"),
+        "shear_coefficient": Key(POSITIVE, None, "default: Cowper's 6(1+nu)/(7+6nu)"),
+    },
+    "matrix": {
+        "matrix": Key(Matrix6(), doc="symmetric positive-definite 6 x 6 stiffness, "
+                      "strain order (v1, v2, v3, u1, u2, u3)"),
+        "radius": Key(POSITIVE, None, "radius (contact, rendering)"),
+    },
+}
+
+SUPPORTS = {
+    "clamp": {},
+    "pin": {"components": Key(Components(), [0, 1, 2], "position components held")},
+    "fix_rotation": {"components": Key(Components(), [0, 1, 2], "spin components held")},
+    "prescribe_rotation": {
+        "rotation_vector": Key(VECTOR, doc="spatial rotation vector at load factor 1")},
+    "prescribe_displacement": {
+        "displacement": Key(VECTOR, doc="displacement at load factor 1"),
+        "components": Key(Components(), [0, 1, 2], "components prescribed")},
+}
+SUPPORT_COMMON = {
+    "kind": Key(Choice(*SUPPORTS), doc="kind of support"),
+    "where": Key(Where(), doc="node of the support"),
+}
+
+LOADS = {
+    "force": {"where": Key(Where(), doc="node loaded"),
+              "follower": Key(Boolean(), False, "rotates with the section")},
+    "moment": {"where": Key(Where(), doc="node loaded"),
+               "follower": Key(Boolean(), False, "rotates with the section")},
+    "distributed_force": {},
+    "distributed_torque": {},
+}
+LOAD_COMMON = {
+    "kind": Key(Choice(*LOADS), doc="kind of load"),
+    "vector": Key(VECTOR, doc="value at load factor 1 (per unit length if distributed)"),
+}
+
+def _contact_keys():
+    from .contact import ContactOptions
+    d = {f.name: (None if f.default is MISSING else f.default)
+         for f in fields(ContactOptions)}
+    docs = {"radius": "contact radius eps (default: section radius)",
+            "penalty": "compliance mu_N (default 10 eps^4 / EI)",
+            "exclusion": "excluded arclength (default pi eps)",
+            "n_slave": "slave points per element",
+            "tolerance": "Uzawa tolerance (times eps)",
+            "max_uzawa": "Uzawa updates per step",
+            "margin": "extra search reach (default eps)"}
+    checks = {"radius": POSITIVE, "penalty": POSITIVE, "exclusion": POSITIVE,
+              "n_slave": Integer(1, 20), "tolerance": POSITIVE,
+              "max_uzawa": Integer(1, 10_000), "margin": Number(0, lo_open=False)}
+    keys = {"enabled": Key(Boolean(), True, "switch self-contact on")}
+    keys.update({n: Key(checks[n], d[n], docs[n]) for n in d})
+    return keys
+
+
+CONTACT = _contact_keys()
+
+
+def _solver_keys():
+    from .solver import SolverOptions
+    d = {f.name: f.default for f in fields(SolverOptions)}
+    checks = {
+        "rtol": POSITIVE, "increment_tol": POSITIVE, "max_iterations": Integer(1, 10_000),
+        "line_search": Boolean(), "max_backtracks": Integer(1, 100),
+        "max_spin_update": POSITIVE, "max_growth": POSITIVE, "min_step": POSITIVE,
+        "max_rotation_step": POSITIVE, "grow": Number(1, lo_open=False),
+    }
+    keys = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
+            "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times")}
+    keys.update({n: Key(checks[n], d[n]) for n in d})
+    return keys
+
+
+SOLVER = _solver_keys()
+
+OUTPUT = {
+    "directory": Key(Text(), None, "output directory (default output/<scene name>)"),
+    "basename": Key(Basename(), None, "file name stem (default: the scene name)"),
+    "json": Key(Boolean(), True, "JSON summary <basename>.json"),
+    "vtu": Key(Boolean(), False, "VTU per step + <basename>.pvd/.xdmf"),
+    "render": Key(Boolean(), False, "PNG of the last converged step"),
+    "per_element": Key(Integer(1, 64), 8, "samples per element (VTU, render)"),
+    "camera": Key(Choice(*CAMERAS), "iso", "render view"),
+    "window_size": Key(WindowSize(), [1024, 768], "render size (pixels)"),
+    "title": Key(Text(), None, "render title (default: the scene title)"),
+    "zoom": Key(POSITIVE, None, "camera zoom instead of the automatic fit"),
+}
+
+ROD = {
+    "geometry": Key(None, doc="reference shape: [rod.geometry]"),
+    "n_elements": Key(Integer(1, MAX_ELEMENTS), doc="number of cubic elements"),
+    "n_quad": Key(Integer(1, MAX_QUAD), 3, "Gauss points per element"),
+}
+
+TOP = ("title", "rod", "section", "support", "load", "contact", "solver", "output")
+
+
+# ---------------------------------------------------------------------------
+# the validator
+# ---------------------------------------------------------------------------
+class _Checker:
+    def __init__(self):
+        self.problems = []
+
+    def bad(self, msg):
+        self.problems.append(msg)
+
+    def value(self, path, v, check):
+        try:
+            return check(v), True
+        except _Bad as bad:
+            note = f" ({bad.note})" if bad.note else ""
+            self.bad(f"{path} = {_show(v)}: expected {check.expected}{note}")
+            return None, False
+
+    def table(self, path, v, what):
+        if isinstance(v, dict):
+            return True
+        self.bad(f"{path} = {_show(v)}: expected a table ({what})")
+        return False
+
+    def keys(self, path, table, allowed, label, others=None, tag=None):
+        """Report keys of ``table`` not in ``allowed``, with the closest valid
+        name (and the variants ``others`` of a typed table that have it)."""
+        for k in table:
+            if k in allowed:
+                continue
+            ks = str(k)
+            close = difflib.get_close_matches(ks, [str(a) for a in allowed], n=1)
+            owners = [o for o, keys in (others or {}).items() if k in keys]
+            msg = f"{path}.{ks}" if path else ks
+            msg += " is not a known key"
+            if owners:
+                msg += f" here (only for {tag} = " + " or ".join(
+                    json.dumps(o) for o in owners) + ")"
+            msg += f'; did you mean "{close[0]}"?' if close else "."
+            self.bad(f"{msg} Allowed in {label}: {', '.join(allowed)}")
+
+    def fill(self, path, table, spec):
+        """Check the keys of ``spec`` present in ``table`` and fill defaults."""
+        out = {}
+        for name, key in spec.items():
+            if key.check is None:
+                continue
+            if name not in table:
+                if key.default is _REQUIRED:
+                    self.bad(f"{path}.{name} is missing: expected {key.check.expected}"
+                             + (f" ({key.doc})" if key.doc else ""))
+                else:
+                    out[name] = key.default
+                continue
+            val, ok = self.value(f"{path}.{name}", table[name], key.check)
+            if ok:
+                out[name] = val
+        return out
+
+    def typed(self, path, table, tag, variants, common, label, default_tag=None):
+        """A table whose keys depend on the variant named by ``table[tag]``
+        (or ``default_tag`` when absent)."""
+        if tag in table:
+            name = self.value(f"{path}.{tag}", table[tag], common[tag].check)[0]
+        else:
+            name = default_tag
+            if name is None:
+                self.bad(f"{path}.{tag} is missing: expected {common[tag].check.expected}"
+                         + (f" ({common[tag].doc})" if common[tag].doc else ""))
+        if name is None:                      # unknown variant: check what we can
+            self.keys(path, table, list(common) + sorted(
+                {k for v in variants.values() for k in v}), label)
+            return None
+        spec = {**common, **variants[name]}
+        others = {o: keys for o, keys in variants.items() if o != name}
+        self.keys(path, table, list(spec), f"{label} ({tag} = {json.dumps(name)})",
+                  others, tag)
+        out = self.fill(path, table, {k: v for k, v in spec.items() if k != tag})
+        out[tag] = name
+        return out
+
+
+def _section_kind(table, checker):
+    """The section's type, inferred from its keys when not given; None (and
+    a problem reported) when the keys of several types are mixed."""
+    if "type" in table:
+        return None
+    own = {kind: set(spec) - {"radius"} for kind, spec in SECTIONS.items()}
+    present = {kind: sorted(own[kind] & set(table)) for kind in own}
+    present = {kind: keys for kind, keys in present.items() if keys}
+    if len(present) > 1:
+        checker.bad("section mixes the keys of " + " and of ".join(
+            f'a {json.dumps(kind)} section ({", ".join(keys)})'
+            for kind, keys in present.items())
+            + "; give the keys of one type only")
+        return None
+    return next(iter(present), "stiffness")
+
+
+def _validate(data):
+    c = _Checker()
+    if not isinstance(data, dict):
+        raise SceneError([f"a scene must be a table of tables ([rod], [section], ...), "
+                          f"got {_show(data)}"])
+    c.keys("", data, list(TOP), "the top level")
+    out = {}
+    if "title" in data:
+        out["title"] = c.value("title", data["title"], Text())[0]
+
+    # [rod] -----------------------------------------------------------------
+    rod = data.get("rod")
+    if rod is None:
+        c.bad("rod is missing: expected a table [rod] with geometry and n_elements")
+    elif c.table("rod", rod, "[rod] with geometry, n_elements, n_quad"):
+        c.keys("rod", rod, list(ROD), "[rod]")
+        out["rod"] = c.fill("rod", rod, ROD)
+        g = rod.get("geometry")
+        if g is None:
+            c.bad("rod.geometry is missing: expected a table [rod.geometry] with a type "
+                  '("straight", "arc", "helix" or "polyline") and its parameters')
+        elif c.table("rod.geometry", g, "[rod.geometry] with a type and its parameters"):
+            out["rod"]["geometry"] = c.typed(
+                "rod.geometry", g, "type", GEOMETRY,
+                {"type": Key(Choice(*GEOMETRY), doc="shape")}, "[rod.geometry]")
+
+    # [section] ---------------------------------------------------------------
+    sec = data.get("section")
+    if sec is None:
+        c.bad("section is missing: expected a table [section] (stiffnesses EA, GA1, GA2, "
+              "EI1, EI2, GJ; or circle E, nu, radius; or matrix)")
+    elif c.table("section", sec, "[section]"):
+        kind = _section_kind(sec, c)
+        if kind is not None or "type" in sec:
+            common = {"type": Key(Choice(*SECTIONS), kind, "kind of section")}
+            out["section"] = c.typed("section", sec, "type", SECTIONS, common,
+                                     "[section]", default_tag=kind)
+
+    # [[support]], [[load]] -------------------------------------------------
+    for name, variants, common in (("support", SUPPORTS, SUPPORT_COMMON),
+                                   ("load", LOADS, LOAD_COMMON)):
+        items = data.get(name, [])
+        if isinstance(items, dict):
+            c.bad(f"{name} = {_show(items)}: expected an array of tables "
+                  f"([[{name}]] entries, one per {name}), got a single table")
+            continue
+        if not isinstance(items, (list, tuple)):
+            c.bad(f"{name} = {_show(items)}: expected an array of tables ([[{name}]])")
+            continue
+        out[name] = []
+        for k, item in enumerate(items):
+            path = f"{name}[{k}]"
+            if c.table(path, item, f"a [[{name}]] entry"):
+                out[name].append(c.typed(path, item, "kind", variants, common,
+                                         f"[[{name}]]"))
+
+    # [contact], [solver], [output] -----------------------------------------
+    for name, spec in (("contact", CONTACT), ("solver", SOLVER), ("output", OUTPUT)):
+        if name in data and c.table(name, data[name], f"[{name}]"):
+            c.keys(name, data[name], list(spec), f"[{name}]")
+            out[name] = c.fill(name, data[name], spec)
+    out.setdefault("solver", {k: key.default for k, key in SOLVER.items()})
+
+    if c.problems:
+        raise SceneError(c.problems)
+    out.setdefault("support", [])
+    out.setdefault("load", [])
+    return out
+
+
+# ---------------------------------------------------------------------------
+# building
+# ---------------------------------------------------------------------------
+def _wrapped(path, err, keys=()):
+    """Prefix an API error message with the table path (and the key it names)."""
+    msg = str(err)
+    first = msg.split(" ", 1)[0].rstrip(":=")
+    if first.startswith("where="):
+        first = "where"
+    return f"{path}.{first}: {msg}" if first in keys else f"{path}: {msg}"
+
+
+def _call(path, keys, f, *args, **kwargs):
+    try:
+        return f(*args, **kwargs)
+    except ValueError as err:
+        raise SceneError([_wrapped(path, err, keys)]) from None
+    except ArithmeticError as err:     # e.g. Section.circle(radius=1e300) overflows
+        raise SceneError([f"{path}: these values are out of floating-point range "
+                          f"({type(err).__name__}: {err})"]) from None
+
+
+def _shape(g):
+    from . import geometry
+    kw = {k: v for k, v in g.items() if k != "type" and v is not None}
+    if g["type"] == "straight" and g["d1"] is not None:
+        t, d1 = (np.asarray(v) / np.abs(v).max() for v in (g["direction"], g["d1"]))
+        if np.linalg.norm(np.cross(t, d1)) < 1e-8 * np.linalg.norm(t) * np.linalg.norm(d1):
+            raise SceneError([f"rod.geometry.d1 = {_show(g['d1'])}: expected a vector "
+                              f"not parallel to direction = {_show(g['direction'])}"])
+    if g["type"] == "polyline" and g["d1"] is not None \
+            and len(g["d1"]) != len(g["points"]):
+        raise SceneError([f"rod.geometry.d1: expected one director per point "
+                          f"({len(g['points'])}), got {len(g['d1'])}"])
+    return _call("rod.geometry", list(kw), getattr(geometry, g["type"]), **kw)
+
+
+def _section(s):
+    from .section import Section
+    kw = {k: v for k, v in s.items() if k != "type" and v is not None}
+    if s["type"] == "circle":
+        f = Section.circle
+    elif s["type"] == "matrix":
+        f = Section.from_matrix
+        kw["C"] = kw.pop("matrix")
+        for k in range(6):
+            if not kw["C"][k][k] > 0:
+                raise SceneError([f"section.matrix: diagonal entry [{k}][{k}] = "
+                                  f"{_show(kw['C'][k][k])}: expected > 0 (the stiffness "
+                                  "must be positive definite)"])
+    else:
+        f = Section
+    return _call("section", list(kw) + ["matrix"], f, **kw)
+
+
+def _claim(claims, node, comps, who, prescribed):
+    """Record that support ``who`` holds components ``comps`` (0-2 position,
+    3-5 rotation) of ``node``; several supports may hold one component only
+    if none of them prescribes a motion."""
+    for comp in comps:
+        prev = claims.get((node, comp))
+        if prev is not None and (prev[1] or prescribed):
+            what = "position" if comp < 3 else "rotation"
+            raise SceneError([
+                f"{who} and {prev[0]} both hold the {what} component {comp % 3} of node "
+                f"{node}, and one of them prescribes its motion: a prescribed component "
+                "must be held by one support only (remove one of them, or give it "
+                "other components)"])
+        claims[(node, comp)] = (who, prescribed)
+
+
+def _build(d):
+    from .model import Rod
+    shape = _shape(d["rod"]["geometry"])
+    section = _section(d["section"])
+    rod = _call("rod", ["n_elements", "n_quad"], Rod, shape, section,
+                d["rod"]["n_elements"], d["rod"]["n_quad"])
+    if not (np.all(np.isfinite(rod.r0)) and np.all(np.isfinite(rod.R0))
+            and np.all(np.isfinite(rod.eps0))):
+        raise SceneError(["rod.geometry: the reference shape has non-finite positions, "
+                          "frames or strains (NaN/inf): check its parameters"])
+
+    def node(path, where):
+        if not isinstance(where, str) and where > rod.length * (1 + 1e-12):
+            raise SceneError([f"{path}.where = {_show(where)}: expected an arclength in "
+                              f"[0, {rod.length:g}] (the rod length)"])
+        return _call(path, ["where"], rod.node, where)
+
+    claims = {}
+    for k, sup in enumerate(d["support"]):
+        path, kind = f"support[{k}]", sup["kind"]
+        n = node(path, sup["where"])
+        comps = sup.get("components", [0, 1, 2])
+        who = f"{path} ({kind} at {_show(sup['where'])})"
+        if kind in ("clamp", "prescribe_rotation"):
+            comps = range(3, 6) if kind == "prescribe_rotation" else range(6)
+        elif kind == "fix_rotation":
+            comps = [3 + i for i in comps]
+        _claim(claims, n, comps, who, kind.startswith("prescribe"))
+        args = {k: v for k, v in sup.items() if k not in ("kind", "where")}
+        _call(path, list(args), getattr(rod, kind), sup["where"], **args)
+    for k, load in enumerate(d["load"]):
+        path, kind = f"load[{k}]", load["kind"]
+        if kind in ("force", "moment"):
+            node(path, load["where"])
+            f = rod.add_force if kind == "force" else rod.add_moment
+            _call(path, ["vector"], f, load["where"], load["vector"], load["follower"])
+        else:
+            f = getattr(rod, "add_" + kind)
+            _call(path, ["vector"], f, load["vector"])
+    cont = d.get("contact")
+    if cont is not None and cont["enabled"]:
+        kw = {k: v for k, v in cont.items() if k != "enabled" and v is not None}
+        if "radius" not in kw and rod.section.radius is None:
+            raise SceneError(["contact.radius is missing: contact needs a radius; give "
+                              "contact.radius or section.radius"])
+        _call("contact", list(kw), rod.enable_contact, **kw)
+    _call("support", [], rod.check_constraints)
+    return rod
+
+
+def _solver_options(d):
+    s = d["solver"]
+    return {k: v for k, v in s.items() if k not in ("n_steps", "path")}
+
+
+# ---------------------------------------------------------------------------
+# the scene
+# ---------------------------------------------------------------------------
+class Scene:
+    """A validated scene (made by :func:`load_scene`).
+
+    Attributes
+    ----------
+    data : dict
+        The scene with every default filled in (echoed in the JSON summary).
+    name : str
+        The scene file's stem (or the ``name`` given to :func:`load_scene`).
+    source : str or None
+        The scene file.
+    """
+
+    def __init__(self, data, name="scene", source=None, _rod=None):
+        self.data = data
+        self.name = name
+        self.source = source
+        self._rod = _rod
+
+    def __repr__(self):
+        return f"Scene({self.name!r}, source={self.source!r})"
+
+    @property
+    def title(self):
+        return self.data.get("title") or self.name
+
+    @property
+    def output(self):
+        """The [output] table (defaults filled in), or None if absent."""
+        return self.data.get("output")
+
+    def build(self):
+        """A new :class:`~skfem_rod.Rod` with the scene's shape, section,
+        supports, loads and contact."""
+        return _build(self.data)
+
+    def solve(self, callback=None):
+        """Build and solve; returns the :class:`~skfem_rod.Result` (no files)."""
+        rod, self._rod = (self._rod or self.build()), None
+        s = self.data["solver"]
+        return rod.solve(s["n_steps"], path=s["path"], callback=callback,
+                         **_solver_options(self.data))
+
+    def run(self, out=None):
+        """Solve and write what [output] asks for (into ``out`` if given);
+        returns the :class:`~skfem_rod.Result`.  Without an [output] table
+        and without ``out`` nothing is written."""
+        t0 = time.perf_counter()
+        result = self.solve()
+        self.write(result, out=out, wall_time=time.perf_counter() - t0)
+        return result
+
+    def output_directory(self, out=None):
+        o = self.output or {}
+        return os.fspath(out) if out is not None else (
+            o.get("directory") or os.path.join("output", self.name))
+
+    def write(self, result, out=None, wall_time=None):
+        """Write the outputs of ``result`` ([output], or its defaults when
+        ``out`` is given without an [output] table); returns the paths.  A
+        stopped solve writes its converged steps."""
+        o = self.output
+        if o is None:
+            if out is None:
+                return []
+            o = {k: key.default for k, key in OUTPUT.items()}
+        directory = self.output_directory(out)
+        base = o["basename"] or self.name
+        written = []
+        if not (o["json"] or o["vtu"] or o["render"]):
+            return written
+        os.makedirs(directory, exist_ok=True)
+        if result.steps and o["vtu"]:
+            written += result.write_series(directory, base, o["per_element"])
+        if result.steps and o["render"]:
+            kw = dict(camera=o["camera"], window_size=tuple(o["window_size"]),
+                      title=o["title"] or self.title, per_element=o["per_element"])
+            if o["zoom"] is not None:
+                kw["zoom"] = o["zoom"]
+            written.append(result.render(os.path.join(directory, base + ".png"), **kw))
+        if o["json"]:
+            from .export import write_json
+            path = os.path.join(directory, base + ".json")
+            data = summary(self, result, wall_time)
+            data["files"] = [os.path.basename(p) for p in written + [path]]
+            written.append(write_json(path, data))
+        return written
+
+
+def step_figures(step, index):
+    """Per-step figures (for the JSON summary and the progress lines)."""
+    row = dict(step=index, time=step.time, load_factor=step.load_factor,
+               newton_iterations=step.iterations,
+               residual=step.residual_history[-1] if step.residual_history else 0.0,
+               residual_history=step.residual_history,
+               strain_energy=step.energy)
+    c = step.contact
+    if c is not None:
+        row.update(newton_iterations=c.newton_total, uzawa_iterations=c.uzawa,
+                   active_contacts=int(c.force.size), penetration=c.penetration,
+                   contact_force=c.total_force, uzawa_converged=c.uzawa_converged)
+    return row
+
+
+def summary(scene, result, wall_time=None):
+    """The JSON summary: input, how the solve ended, the end state and the
+    per-step figures."""
+    rod = result.rod
+    out = dict(scene=scene.name, source=scene.source, title=scene.title,
+               converged=result.converged, message=result.message, log=list(result.log),
+               wall_time_s=wall_time, length=rod.length,
+               n_elements=rod.mesh.n_elements, n_nodes=rod.mesh.n_nodes,
+               input=scene.data,
+               steps=[step_figures(st, k) for k, st in enumerate(result.steps)],
+               end_state=None)
+    if result.steps:
+        st = result.steps[-1]
+        s, r, R = result.nodes()
+        reactions = []
+        for n, (force, moment) in st.reactions.items():
+            held = [f"support[{k}]" for k, sup in enumerate(scene.data["support"])
+                    if rod.node(sup["where"]) == n]
+            reactions.append(dict(node=n, s=float(rod.mesh.s_nodes[n]), supports=held,
+                                  force=force, moment=moment))
+        out["end_state"] = dict(
+            step=len(result.steps) - 1, load_factor=st.load_factor, time=st.time,
+            strain_energy=st.energy, start=r[0], end=r[-1], reactions=reactions,
+            s=s, r=r, d1=R[:, :, 0], d2=R[:, :, 1], d3=R[:, :, 2])
+        if st.contact is not None:
+            c = st.contact
+            out["end_state"]["contact"] = dict(
+                s=c.s, s_bar=c.s_bar, force=c.force, gap=c.gap,
+                points=result.contact_points(), total_force=c.total_force,
+                penetration=c.penetration)
+    return out
+
+
+# ---------------------------------------------------------------------------
+def read_toml(path):
+    """The table of a TOML file; TOML syntax errors become SceneError (a
+    ValueError), an unreadable file OSError."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:                  # Python 3.10
+        import tomli as tomllib
+    with open(path, "rb") as f:
+        raw = f.read()
+    try:
+        return tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as err:
+        raise SceneError([f"not a UTF-8 text file ({err})"]) from None
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError([f"invalid TOML: {err}"]) from None
+
+
+def load_scene(source, name=None):
+    """Read and validate a scene; returns a :class:`Scene`.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or dict
+        A TOML file, or its table as a dict.
+    name : str, optional
+        Scene name (default: the file's stem, or ``"scene"``); the default
+        output directory is ``output/<name>`` and files are ``<name>.*``.
+
+    Raises
+    ------
+    SceneError (a ValueError)
+        Listing every invalid, missing or unknown key with its table path,
+        its value and what is allowed; or, once the keys are valid, the
+        first problem found while building the rod (boundary conditions).
+    OSError
+        When the file cannot be read.
+    """
+    src = None
+    if isinstance(source, (str, os.PathLike)):
+        src = os.fspath(source)
+        data = read_toml(src)
+        name = name or pathlib.Path(src).stem
+    else:
+        data = source
+    d = _validate(data)
+    rod = _build(d)
+    return Scene(d, name=name or "scene", source=src, _rod=rod)
