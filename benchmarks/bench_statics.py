@@ -3,22 +3,25 @@ profile and memory of the assembly.
 
 Usage::
 
-    python benchmarks/bench_statics.py            # full run -> benchmarks/RESULTS.md
+    python benchmarks/bench_statics.py            # full run -> benchmarks/RESULTS_statics.md
+                                                  #   + work_precision.png, scaling.png
+    python benchmarks/run_all.py                  # every benchmark -> benchmarks/RESULTS.md
     python benchmarks/bench_statics.py --quick    # smoke run -> benchmarks/RESULTS_quick.md
     python benchmarks/bench_statics.py --output some/file.md
 
 Sections (each printed as markdown and written to the output file):
 
-1. Accuracy and solve cost of the roll-up (end moment, phi = 2 pi) and of
-   the tip-loaded cantilever (P L^2 / EI = 2) for 2..64 elements.
-2. Cost of one Newton iteration (assembly of residual + tangent, residual
-   only, sparse factorization + solve) for 10..10000 elements at a deformed
-   state, with the log-log slopes and the assembly/solve ratio.
+1. Accuracy and solve cost (work-precision) of the roll-up (end moment,
+   phi = 2 pi), the tip-loaded cantilever (P L^2 / EI = 2) and the
+   45-degree bend for 2..64 P3 elements (the only element order), and the
+   time to reach tip error 1e-8.
+2. Cost and peak memory of one Newton iteration (assembly of residual +
+   tangent, residual only, sparse factorization + solve) for 10..10000
+   elements at a deformed state, with the log-log slopes and the
+   assembly/solve ratio.
 3. Where the assembly spends its time: a stage-by-stage timing of
    ``internal_work`` and a cProfile of one assembly at 1000 elements.
 4. Peak memory (tracemalloc) of one assembly at 10000 elements.
-5. Round-off floor of the residual vs the convergence threshold of the
-   Newton solver (why large meshes may never reach "converged").
 
 The machine may be shared: every time is a median of repeats, and the
 quantities that are compared (ratios) are measured interleaved in one run.
@@ -63,6 +66,11 @@ def section():
 
 
 def make_rod(case, n_elements):
+    if case == "bend":
+        rod = Rod(bend_shape(), Section(**BEND_SECTION), n_elements)
+        rod.clamp("start")
+        rod.add_force("end", [0.0, 0.0, BEND_LOAD])
+        return rod
     rod = Rod(geometry.straight(L), section(), n_elements)
     rod.clamp("start")
     if case == "rollup":
@@ -72,6 +80,55 @@ def make_rod(case, n_elements):
     else:
         raise ValueError(case)
     return rod
+
+
+# 45-degree bend (Bathe & Bolourchi 1979; Simo & Vu-Quoc 1986): arc of
+# radius 100, angle pi/4, clamped, dead tip force 600 out of its plane; the
+# same data as tests/test_verification.py and scenes/bend45.toml
+BEND_RADIUS = 100.0
+BEND_SECTION = dict(EA=1e7, GA1=5e6, GA2=5e6, EI1=1e7 / 12, EI2=1e7 / 12, GJ=5e6 / 6)
+BEND_LOAD = 600.0
+
+
+def bend_shape():
+    return geometry.arc(BEND_RADIUS, np.pi / 4, start=(0.0, 0.0, 0.0),
+                        tangent=(0.0, 1.0, 0.0), toward=(1.0, 0.0, 0.0))
+
+
+def bend_reference(rtol=1e-12):
+    """Tip of the 45-degree bend at P = 600 by shooting on the 3D
+    Simo-Reissner equations (as in tests/test_verification.py):
+    ``r' = R v``, ``R' = R hat(u)``, ``m' = -r' x n``, ``n = F`` (dead tip
+    force), ``(v, u) = (e3, e2 / radius) + C^-1 (R^T n, R^T m)``; the
+    unknown ``m(0)`` solves ``m(L) = 0`` (continuation over 150, 300, 450,
+    600).  Only the frame at s = 0 is taken from the package."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import fsolve
+    shape = bend_shape()
+    C = np.diag([BEND_SECTION[k] for k in ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")])
+    Ci = np.linalg.inv(C)
+    eps0 = np.array([0.0, 0.0, 1.0, 0.0, 1.0 / BEND_RADIUS, 0.0])
+    R00 = shape(np.array([0.0]))[1][0]
+
+    def rhs(s, y, F):
+        R, m = y[3:12].reshape(3, 3), y[12:]
+        e = eps0 + Ci @ np.r_[R.T @ F, R.T @ m]
+        v, u = e[:3], e[3:]
+        uhat = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+        rp = R @ v
+        return np.r_[rp, (R @ uhat).ravel(), -np.cross(rp, F)]
+
+    def shoot(m0, F):
+        sol = solve_ivp(rhs, (0.0, shape.length), np.r_[0, 0, 0, R00.ravel(), m0],
+                        args=(F,), method="DOP853", rtol=rtol, atol=rtol * 1e-2)
+        return sol.y[:, -1]
+
+    m0 = np.zeros(3)
+    for P in (150.0, 300.0, 450.0, BEND_LOAD):
+        F = np.array([0.0, 0.0, P])
+        m0 = fsolve(lambda m: shoot(m, F)[12:], m0, xtol=1e-13)
+    yL = shoot(m0, np.array([0.0, 0.0, BEND_LOAD]))
+    return yL[:3], shape.length
 
 
 def rollup_state(rod):
@@ -162,55 +219,145 @@ def machine_info():
 
 
 # ---------------------------------------------------------------------------
+CASE_TITLES = {"rollup": "Roll-up, phi = 2 pi",
+               "cantilever": f"Tip-loaded cantilever, P L^2/EI = {ALPHA:g}",
+               "bend": f"45-degree bend, P = {BEND_LOAD:g}"}
+
+
 def accuracy(rep, sizes, repeats):
-    rep.add("## 1. Accuracy and cost of whole solves\n")
+    """Error against wall time under mesh refinement; returns
+    ``{case: [(n, tip_error, max_error, t_solve, t_build_solve), ...]}``."""
+    rep.add("## 1. Accuracy and cost of whole solves (work-precision)\n")
+    rep.add("**Element order: P3 only.** skfem_rod has nodal cubic (P3) elements "
+            "only (no P1/P2 variant exists), so the work-precision curves are "
+            "under mesh refinement at fixed order 3.\n")
     rep.add(f"Roll-up: end moment M = 2 pi EI / L (phi = 2 pi, exact circle, "
             f"`analytic.rollup`). Cantilever: dead tip force P L^2/EI = {ALPHA:g} "
             f"(`analytic.elastica_cantilever` with the same EA, GA). "
             f"EA = GA = {EA:g}, EI = GJ = {EI:g}, L = {L:g}. "
+            f"45-degree bend: arc of radius {BEND_RADIUS:g}, clamped, dead tip "
+            f"force {BEND_LOAD:g} out of plane (Bathe & Bolourchi 1979); reference "
+            f"tip from an independent shooting solution of the 3D rod equations "
+            f"(`scipy.integrate.solve_ivp`, DOP853, rtol 1e-12; as in "
+            f"tests/test_verification.py), errors divided by the arc length. "
             f"`rod.solve(n_steps={N_STEPS})`, default solver options. "
             f"Errors: Euclidean distance of the nodal positions to the reference, "
-            f"divided by L; `order` = log2 of the ratio of the all-node error "
-            f"between successive meshes. Time: wall time of `rod.solve` only "
-            f"(median of {repeats} runs, rod built outside the timer). "
-            f"`Newton its` = total over the load steps (step 0 = the unloaded "
-            f"check, 0 iterations); `steps` = converged load steps used "
-            f"(> {N_STEPS} means the solver cut steps).\n")
+            f"divided by L (bend: tip only); `order` = log2 of the error ratio "
+            f"between successive meshes (all-node error; bend: tip). "
+            f"Time: `solve` = wall time of `rod.solve` only, `build+solve` = "
+            f"`Rod(...)`, supports, loads and `rod.solve` (median of {repeats} "
+            f"runs each). `Newton its` = total over the load steps; `steps` = "
+            f"converged load steps used (> {N_STEPS} means the solver cut steps).\n")
     cant = analytic.elastica_cantilever(ALPHA, EA=EA, GA=GA, EI=EI, length=L)
+    t0 = time.perf_counter()
+    bend_tip, bend_len = bend_reference()
+    t_ref = time.perf_counter() - t0
+    bend_tip_loose, _ = bend_reference(rtol=1e-10)
     rep.add(f"Cantilever reference: tip_u = {cant.tip_u:.15f}, "
             f"tip_v = {cant.tip_v:.15f}, its own refinement error estimate "
-            f"tip_error = {cant.tip_error:.1e}.\n")
-    for case in ("rollup", "cantilever"):
-        rows, prev = [], None
+            f"tip_error = {cant.tip_error:.1e}. Bend reference tip: "
+            f"({bend_tip[0]:.10f}, {bend_tip[1]:.10f}, {bend_tip[2]:.10f}) "
+            f"({t_ref:.1f} s); change against rtol 1e-10: "
+            f"{np.linalg.norm(bend_tip - bend_tip_loose) / bend_len:.1e} of the arc "
+            f"length.\n")
+    data = {}
+    for case in ("rollup", "cantilever", "bend"):
+        rows, prev, data[case] = [], None, []
         for n in sizes:
-            times, res = [], None
+            times, tbs, res = [], [], None
             for _ in range(repeats):
-                rod = make_rod(case, n)
                 gc.collect()
                 t = time.perf_counter()
+                rod = make_rod(case, n)
+                t1 = time.perf_counter()
                 res = rod.solve(n_steps=N_STEPS)
-                times.append(time.perf_counter() - t)
+                t2 = time.perf_counter()
+                times.append(t2 - t1)
+                tbs.append(t2 - t)
             s, r, _ = res.nodes()
-            if case == "rollup":
-                ref = analytic.rollup(L, EI, PHI * EI / L, s)
-                x, y = ref.x, ref.y
+            if case == "bend":
+                err = np.array([np.linalg.norm(r[-1] - bend_tip) / bend_len])
             else:
-                x, y = cant.x(s), cant.y(s)
-            err = np.sqrt((r[:, 0] - x) ** 2 + (r[:, 1] - y) ** 2 + r[:, 2] ** 2) / L
+                if case == "rollup":
+                    ref = analytic.rollup(L, EI, PHI * EI / L, s)
+                    x, y = ref.x, ref.y
+                else:
+                    x, y = cant.x(s), cant.y(s)
+                err = np.sqrt((r[:, 0] - x) ** 2 + (r[:, 1] - y) ** 2 + r[:, 2] ** 2) / L
             e_all, e_tip = float(err.max()), float(err[-1])
             order = "" if prev is None else f"{np.log2(prev / e_all):.2f}"
             prev = e_all
-            rows.append([n, f"{e_tip:.2e}", f"{e_all:.2e}", order,
-                         fmt_t(float(np.median(times))), int(res.iterations.sum()),
+            ts, tb = float(np.median(times)), float(np.median(tbs))
+            data[case].append((n, e_tip, e_all, ts, tb))
+            rows.append([n, f"{e_tip:.2e}", "" if case == "bend" else f"{e_all:.2e}",
+                         order, fmt_t(ts), fmt_t(tb), int(res.iterations.sum()),
                          " ".join(str(i) for i in res.iterations[1:]),
                          len(res.steps) - 1, "yes" if res.converged else "NO"])
-        title = ("Roll-up, phi = 2 pi" if case == "rollup"
-                 else f"Tip-loaded cantilever, P L^2/EI = {ALPHA:g}")
-        rep.add(f"### {title}\n")
+        rep.add(f"### {CASE_TITLES[case]}\n")
         rep.add(table(["n_elements", "tip error / L", "max nodal error / L", "order",
-                       "solve time", "Newton its", "its per step", "steps",
+                       "solve", "build+solve", "Newton its", "its per step", "steps",
                        "converged"], rows))
         rep.add()
+    rep.add("### Tip error 1e-8: how long does it take?\n")
+    rep.add("The coarsest mesh of the sweep above whose tip error is at most 1e-8 "
+            "(and, stricter, whose largest nodal error is), with its measured "
+            "median wall time (same runs as the tables).\n")
+    rows = []
+    for case in ("rollup", "cantilever", "bend"):
+        for k, label in ((1, "tip error"), (2, "max nodal error")):
+            if case == "bend" and k == 2:
+                continue
+            hit = [d for d in data[case] if d[k] <= 1e-8]
+            if hit:
+                n, et, ea, ts, tb = hit[0]
+                rows.append([CASE_TITLES[case], label, n, f"{(et, ea)[k - 1]:.1e}",
+                             fmt_t(ts), fmt_t(tb),
+                             "**yes**" if tb < 1.0 else "**NO**"])
+            else:
+                rows.append([CASE_TITLES[case], label, "not reached", "", "", "", "**NO**"])
+    rep.add(table(["problem", "criterion", "coarsest n_elements", "error",
+                   "solve", "build+solve", "under 1 s"], rows))
+    rep.add()
+    return data
+
+
+def plot_work_precision(data, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.4), sharey=True)
+    marks = {"rollup": "o", "cantilever": "s", "bend": "^"}
+    for case, rows in data.items():
+        a = np.array(rows, dtype=float)
+        ax[0].loglog(a[:, 4], np.maximum(a[:, 1], 1e-16), marks[case] + "-",
+                     label=CASE_TITLES[case] + " (tip)")
+        if case != "bend":
+            ax[0].loglog(a[:, 4], a[:, 2], marks[case] + "--", mfc="none",
+                         label=CASE_TITLES[case] + " (max nodal)")
+        ax[1].loglog(a[:, 0], np.maximum(a[:, 1], 1e-16), marks[case] + "-",
+                     label=CASE_TITLES[case] + " (tip)")
+        if case != "bend":
+            ax[1].loglog(a[:, 0], a[:, 2], marks[case] + "--", mfc="none")
+    n = np.array([4.0, 64.0])
+    ax[1].loglog(n, 1e-5 * (n / 4) ** -4, "k:", label="slope -4")
+    for a_ in ax:
+        a_.axhline(1e-8, color="gray", lw=0.8)
+        a_.grid(True, which="major", alpha=0.3)
+    ax[0].axvline(1.0, color="gray", lw=0.8)
+    ax[0].set_xlabel("wall time, build + solve (s), median of repeats")
+    ax[0].set_ylabel("error / L")
+    ax[0].set_title("work-precision (P3 elements, mesh refinement)")
+    ax[1].set_xlabel("n_elements")
+    ax[1].set_title("error under refinement")
+    sizes = sorted({int(r[0]) for rows in data.values() for r in rows})
+    ax[1].set_xticks(sizes)
+    ax[1].set_xticklabels([str(k) for k in sizes])
+    ax[1].minorticks_off()
+    ax[0].legend(fontsize=7, loc="lower left")
+    ax[1].legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 # ---------------------------------------------------------------------------
@@ -262,17 +409,37 @@ def iteration_cost(rep, sizes, repeats_for):
         Kc = K.tocsc()
         lu = spla.splu(Kc)
         fill = (lu.L.nnz + lu.U.nnz) / Kc.nnz
-        data[n] = (ta, tb, tc)
+        lu_bytes = 12 * (lu.L.nnz + lu.U.nnz)    # float64 value + int32 index
+        del lu
+        # peak memory of one Newton iteration (separate run: tracemalloc
+        # slows the code down): system evaluation + factorization + solve
+        gc.collect()
+        tracemalloc.start()
+        out = sysm.evaluate(r, R, 1.0)
+        sysm.factor(out[1])(-out[0])
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        del out
+        mem = peak + lu_bytes
+        data[n] = (ta, tb, tc, mem)
         rows.append([n, 6 * mesh.n_nodes, Kc.nnz, f"{fill:.2f}", reps,
                      f"{fmt_t(ta)} [{fmt_t(mins[0])}]", f"{fmt_t(tb)} [{fmt_t(mins[1])}]",
                      f"{fmt_t(tc)} [{fmt_t(mins[2])}]", f"{ta / tc:.2f}",
-                     f"{ta / n * 1e6:.1f}", f"{tc / n * 1e6:.1f}", fmt_t(t_setup)])
+                     f"{ta / n * 1e6:.1f}", f"{tc / n * 1e6:.1f}",
+                     f"{mem / 2**20:.1f} MiB", f"{mem / n / 1024:.1f} KiB",
+                     fmt_t(t_setup)])
         del rod, sysm, K, res_vec, rhs
     rep.add(table(["n_elements", "dofs", "nnz(K)", "nnz(L+U)/nnz(K)", "repeats",
                    "(a) assembly res+tangent", "(b) residual only",
                    "(c) factor+solve", "(a)/(c)", "(a) us/element",
-                   "(c) us/element", "setup"], rows))
-    rep.add()
+                   "(c) us/element", "peak memory / iteration", "per element",
+                   "setup"], rows))
+    rep.add("\n`peak memory / iteration` = `tracemalloc` peak of one "
+            "`_System.evaluate` (residual + tangent + loads) followed by "
+            "`_System.factor` and one solve (all NumPy/SciPy arrays), plus the "
+            "SuperLU factor storage, which tracemalloc does not see, counted as "
+            "12 bytes per nonzero of L + U. Inputs (state, cached shape operator) "
+            "are not included.\n")
     fit = [n for n in sizes if 100 <= n <= 10000]
     slopes = {}
     if len(fit) >= 2:
@@ -281,11 +448,26 @@ def iteration_cost(rep, sizes, repeats_for):
             slopes[name] = float(np.polyfit(x, np.log([data[n][k] for n in fit]), 1)[0])
         smin = {name: float(np.polyfit(x, np.log([data_min[n][k] for n in fit]), 1)[0])
                 for k, name in enumerate(slopes)}
+        slopes["(a)+(c) one iteration"] = float(np.polyfit(
+            x, np.log([data[n][0] + data[n][2] for n in fit]), 1)[0])
+        smin["(a)+(c) one iteration"] = float(np.polyfit(
+            x, np.log([data_min[n][0] + data_min[n][2] for n in fit]), 1)[0])
+        mem_slope = float(np.polyfit(x, np.log([data[n][3] for n in fit]), 1)[0])
         rep.add(f"Log-log slope of time vs n_elements (np.polyfit on n = "
                 f"{fit[0]}..{fit[-1]}), from the medians: "
                 + ", ".join(f"{k}: **{v:.2f}**" for k, v in slopes.items())
                 + "; from the minima (less sensitive to other load on the machine): "
-                + ", ".join(f"{k}: {v:.2f}" for k, v in smin.items()) + "\n")
+                + ", ".join(f"{k}: {v:.2f}" for k, v in smin.items())
+                + f". Peak memory per iteration: slope **{mem_slope:.2f}**.\n")
+        a, b = fit[-2], fit[-1]
+        loc = {name: np.log(data_min[b][k] / data_min[a][k]) / np.log(b / a)
+               for k, name in ((0, "(a)"), (1, "(b)"), (2, "(c)"))}
+        loc["(a)+(c)"] = np.log((data_min[b][0] + data_min[b][2])
+                                / (data_min[a][0] + data_min[a][2])) / np.log(b / a)
+        rep.add(f"Local slope between the two largest meshes ({a} -> {b} elements, "
+                f"from the minima): " + ", ".join(f"{k} {v:.2f}" for k, v in loc.items())
+                + " (a local slope above the fitted one is the price of memory "
+                "traffic on the largest meshes: see the peak memory per iteration).\n")
     # targets
     lin = all(v <= 1.15 for v in slopes.values()) if slopes else None
     lines = ["**Targets**\n"]
@@ -294,13 +476,44 @@ def iteration_cost(rep, sizes, repeats_for):
                      f"<= 1.15): **{'met' if lin else 'NOT met'}** (max slope "
                      f"{max(slopes.values()):.2f}).")
     if 1000 in data:
-        ta, _, tc = data[1000]
+        ta, _, tc, _ = data[1000]
         ok = ta <= 3 * tc
         lines.append(f"- Assembly <= 3x the sparse solve at 1000 elements: "
                      f"assembly {fmt_t(ta)}, factor+solve {fmt_t(tc)}, ratio "
                      f"**{ta / tc:.2f}** -> **{'met' if ok else 'NOT met'}**.")
     rep.add("\n".join(lines) + "\n")
     return data, slopes
+
+
+def plot_scaling(data, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    n = np.array(sorted(data), dtype=float)
+    a = np.array([data[k] for k in sorted(data)])
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    ax[0].loglog(n, a[:, 0], "o-", label="(a) internal assembly, residual + tangent")
+    ax[0].loglog(n, a[:, 1], "s-", label="(b) residual only")
+    ax[0].loglog(n, a[:, 2], "^-", label="(c) linear solve (factor + solve)")
+    ax[0].loglog(n, a[:, 0] + a[:, 2], "k.-", label="(a) + (c): one Newton iteration")
+    ref = (a[:, 0] + a[:, 2])[n == 100]
+    if ref.size:
+        ax[0].loglog(n, ref[0] * n / 100, "k:", label="slope 1 (through n = 100)")
+    ax[0].set_xlabel("n_elements")
+    ax[0].set_ylabel("time (s), median")
+    ax[0].set_title("cost of one Newton iteration, no contact")
+    ax[1].loglog(n, a[:, 3] / 2**20, "o-", label="peak memory of one iteration")
+    ax[1].loglog(n, a[:, 3][n == 100][0] / 2**20 * n / 100 if (n == 100).any()
+                 else a[:, 3] / 2**20, "k:", label="slope 1")
+    ax[1].set_xlabel("n_elements")
+    ax[1].set_ylabel("MiB")
+    ax[1].set_title("peak memory per iteration")
+    for a_ in ax:
+        a_.grid(True, alpha=0.3)
+        a_.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 # ---------------------------------------------------------------------------
@@ -375,11 +588,14 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help="small sizes and few repeats (smoke test)")
     ap.add_argument("--output", default=None,
-                    help="markdown file (default benchmarks/RESULTS.md, "
+                    help="markdown file (default benchmarks/RESULTS_statics.md, "
                          "benchmarks/RESULTS_quick.md with --quick)")
     args = ap.parse_args(argv)
     out = Path(args.output) if args.output else \
-        HERE / ("RESULTS_quick.md" if args.quick else "RESULTS.md")
+        HERE / ("RESULTS_quick.md" if args.quick else "RESULTS_statics.md")
+    tag = "_quick" if args.quick else ""
+    png_wp = out.parent / f"work_precision{tag}.png"
+    png_sc = out.parent / f"scaling{tag}.png"
     if args.quick:
         acc_sizes, acc_reps = [2, 4, 8, 16], 3
         it_sizes = [10, 30, 100, 300, 1000]
@@ -401,8 +617,12 @@ def main(argv=None):
             f"{'  (QUICK run: reduced sizes and repeats)' if args.quick else ''}\n")
     rep.add(table(["machine", ""], machine_info()))
     rep.add()
-    accuracy(rep, acc_sizes, acc_reps)
-    iteration_cost(rep, it_sizes, reps_for)
+    acc = accuracy(rep, acc_sizes, acc_reps)
+    plot_work_precision(acc, png_wp)
+    rep.add(f"![work-precision]({png_wp.name})\n")
+    it_data, _ = iteration_cost(rep, it_sizes, reps_for)
+    plot_scaling(it_data, png_sc)
+    rep.add(f"![scaling]({png_sc.name})\n")
     rep.add("## 3. Where the assembly time goes\n")
     profile(rep, prof_n)
     memory(rep, mem_n)
@@ -412,8 +632,10 @@ def main(argv=None):
             f"{cpu:.0f} s ({100 * cpu / wall:.0f}% of wall: well below 100% means "
             f"other processes competed for the 2 cores); load average at the end: "
             + ", ".join(f"{x:.2f}" for x in os.getloadavg()) + ".")
-    out.write_text(rep.text())
-    print(f"\nwritten to {out}", flush=True)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(rep.text())
+    os.replace(tmp, out)
+    print(f"\nwritten to {out}, {png_wp.name}, {png_sc.name}", flush=True)
 
 
 if __name__ == "__main__":

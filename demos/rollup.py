@@ -10,7 +10,9 @@ This demo shows how to:
   the end sits at ``(L sin(phi)/phi, L (1 - cos(phi))/phi)``,
 * write the results (JSON summary, a VTU file per step plus a ParaView
   ``.pvd`` series) and an offscreen render of the rod as a tube whose stripe
-  follows the director ``d1``.
+  follows the director ``d1``,
+* write the load path as an animated GIF (one frame per converged step,
+  one camera for all frames: :func:`skfem_rod.render.render_animation`).
 
 The equations are in docs/theory.md; run ``python demos/rollup.py --help``.
 """
@@ -42,7 +44,16 @@ def solve(phi=2 * np.pi, n_elements=16, n_steps=4):
     return result, float(np.abs(r - exact).max() / LENGTH)
 
 
-def main(out="output/rollup", phi=2 * np.pi, n_elements=16, n_steps=4):
+#: Settings for a quick run (tests, demos/gallery.py).
+SMALL = dict(n_elements=8, n_steps=4, window_size=(480, 360), gif_size=(240, 180))
+#: Settings of the gallery thumbnails (docs/img/gallery).
+GALLERY = dict(n_elements=16, n_steps=16, window_size=(720, 540), gif_size=(360, 270))
+
+
+def main(out="output/rollup", phi=2 * np.pi, n_elements=16, n_steps=8,
+         window_size=(1024, 768), animate=True, gif_size=(480, 360)):
+    """Solve, write ``results.json``, the VTU/PVD series, ``rollup.png``
+    and (``animate=True``) ``rollup.gif`` in ``out``; return the summary."""
     os.makedirs(out, exist_ok=True)
     t0 = time.perf_counter()
     result, error = solve(phi, n_elements, n_steps)
@@ -65,9 +76,22 @@ def main(out="output/rollup", phi=2 * np.pi, n_elements=16, n_steps=4):
     write_json(os.path.join(out, "results.json"), summary)
     result.write_series(out, "rollup")
     png = result.render(os.path.join(out, "rollup.png"), camera="iso",
+                        window_size=window_size,
                         title=f"roll-up, end rotation {phi / np.pi:.2g} pi")
+    files = [png]
+    if animate:
+        from skfem_rod.render import render_animation
+        samples = [result.sample(8, k) for k in range(len(result.steps))]
+        files.append(render_animation(
+            os.path.join(out, "rollup.gif"), [(f["r"], f["R"]) for f in samples],
+            result.rod.section.radius, window_size=gif_size, fps=3, camera=(0, -0.6, 1),
+            titles=[f"end rotation {st.load_factor * phi / np.pi:.2f} pi"
+                    for st in result.steps]))
+    summary["renders"] = [png]
+    summary["animations"] = files[1:]
     print(f"{result.message}; max nodal error {error:.2e} L; wall {wall:.2f} s")
-    print(f"wrote {out}/results.json, {out}/rollup.pvd (+ VTU per step), {png}")
+    print(f"wrote {out}/results.json, {out}/rollup.pvd (+ VTU per step), "
+          + ", ".join(files))
     return summary
 
 
@@ -76,6 +100,7 @@ if __name__ == "__main__":
     p.add_argument("--out", default="output/rollup", help="output directory")
     p.add_argument("--phi", type=float, default=2 * np.pi, help="end rotation (rad)")
     p.add_argument("--elements", type=int, default=16, help="number of P3 elements")
-    p.add_argument("--steps", type=int, default=4, help="number of load steps")
+    p.add_argument("--steps", type=int, default=8, help="number of load steps")
+    p.add_argument("--no-gif", action="store_true", help="skip the animated GIF")
     a = p.parse_args()
-    main(a.out, a.phi, a.elements, a.steps)
+    main(a.out, a.phi, a.elements, a.steps, animate=not a.no_gif)

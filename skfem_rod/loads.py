@@ -1,6 +1,8 @@
 """External loads: end (point) forces and moments, dead or follower, and
 distributed forces and torques.  All are proportional to the load factor
-``lam`` of the load path.
+``lam`` of the load path, except point loads marked ``constant`` (preloads:
+applied in full at every load factor, including the reference state solved
+at load factor 0, e.g. a tension held on while an end is twisted).
 
 Virtual work and load stiffness (conventions of :mod:`skfem_rod.rotations`):
 
@@ -31,6 +33,7 @@ class PointLoad:
     vector: np.ndarray
     kind: str          # "force" or "moment"
     follower: bool = False
+    constant: bool = False   # preload: factor 1 at every load factor
 
 
 @dataclass
@@ -58,7 +61,7 @@ def distributed_vector(mesh, loads):
             q = np.broadcast_to(ld.value, mesh.dx.shape + (3,))
         off = 0 if ld.kind == "force" else 3
         for c in range(3):          # three components, each one scalar form
-            f[off + c::6] += asm(_distributed, mesh.sbasis, q=q[..., c])
+            f[off + c::6] += mesh.gather(asm(_distributed, mesh.sbasis, q=q[..., c]))
     return f
 
 
@@ -69,7 +72,7 @@ def point_loads(mesh, loads, R, R0, lam):
     rows, cols, vals = [], [], []
     for ld in loads:
         n = ld.node
-        vec = lam * ld.vector
+        vec = (1.0 if ld.constant else lam) * ld.vector
         off = 0 if ld.kind == "force" else 3
         if ld.follower:
             vec = R[n] @ R0[n].T @ vec

@@ -33,6 +33,11 @@ class RodMesh:
     n_quad : int
         Gauss points per element for the internal work (default 3: full
         4-point integration locks for slender rods, see docs/theory.md).
+    closed : bool
+        A closed rod (ring): the node at ``s = length`` is the node at
+        ``s = 0`` (one position, one rotation), so the last element ends
+        where the first begins.  scikit-fem's open numbering is kept for
+        the bases; ``to_node`` maps it to the closed node numbers.
 
     Examples
     --------
@@ -44,6 +49,7 @@ class RodMesh:
     n_elements: int
     n_quad: int = 3
     vertices: np.ndarray = None
+    closed: bool = False
 
     basis: Basis = field(init=False, repr=False)
     sbasis: Basis = field(init=False, repr=False)
@@ -53,6 +59,10 @@ class RodMesh:
             raise ValueError(f"length must be a finite number > 0, got {self.length!r}")
         count("n_elements", self.n_elements, 1)
         count("n_quad", self.n_quad, 1)
+        if not isinstance(self.closed, (bool, np.bool_)):
+            raise ValueError(f"closed must be True or False, got {self.closed!r}")
+        if self.closed and self.n_elements < 3:
+            raise ValueError(f"a closed rod needs n_elements >= 3, got {self.n_elements!r}")
         if self.vertices is None:
             self.vertices = np.linspace(0.0, self.length, self.n_elements + 1)
         v = np.asarray(self.vertices, dtype=float)
@@ -75,12 +85,33 @@ class RodMesh:
         self.edofs = self.basis.element_dofs.T.copy()
         assert np.array_equal(self.edofs, (6 * self.nodes[:, :, None]
                                            + np.arange(6)).reshape(-1, 24))
+        #: scikit-fem (open) scalar dof -> node number (identity unless closed)
+        self.to_node = np.arange(self.s_nodes.size)
+        if self.closed:
+            self._close()
         #: quadrature: (ne, nq, 4) shape functions and arclength derivatives
         self.N = np.stack([np.asarray(sb.basis[i][0]) for i in range(4)], axis=-1)
         self.dN = np.stack([sb.basis[i][0].grad[0] for i in range(4)], axis=-1)
         self.dx = sb.dx.copy()                       # (ne, nq) weights * J
         self.s_quad = sb.mapping.F(sb.X)[0]          # (ne, nq) arclengths
         self._pattern()
+
+    def _close(self):
+        """Identify the node at ``s = length`` with the node at ``s = 0``."""
+        last = int(np.argmax(self.s_nodes))
+        first = int(np.argmin(self.s_nodes))
+        m = np.arange(self.s_nodes.size)
+        m[last] = first
+        m[m > last] -= 1
+        self.to_node = m
+        self.nodes = m[self.nodes]
+        self.s_nodes = np.delete(self.s_nodes, last)
+        self.order = np.argsort(self.s_nodes, kind="stable")
+        self.edofs = (6 * self.nodes[:, :, None] + np.arange(6)).reshape(-1, 24)
+
+    def gather(self, v):
+        """Sum a vector over scikit-fem's scalar dofs into node numbers."""
+        return np.bincount(self.to_node, weights=v, minlength=self.n_nodes)
 
     # sizes ---------------------------------------------------------------
     @property
@@ -93,7 +124,9 @@ class RodMesh:
 
     @property
     def end_nodes(self):
-        """Global node indices at s = 0 and s = length."""
+        """Global node indices at s = 0 and s = length (one node if closed)."""
+        if self.closed:
+            return int(self.order[0]), int(self.order[0])
         return int(self.order[0]), int(self.order[-1])
 
     # sparse pattern -------------------------------------------------------

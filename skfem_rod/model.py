@@ -1,9 +1,9 @@
 """The rod model: reference shape, section, mesh, supports and loads.
 
+>>> import numpy as np
 >>> from skfem_rod import Rod, Section, geometry
 >>> rod = Rod(geometry.straight(1.0), Section(1e4, 1e4, 1e4, 1.0, 1.0, 1.0), 4)
->>> rod.clamp("start")
->>> rod.add_moment("end", [0.0, 0.0, 0.5 * np.pi])
+>>> rod = rod.clamp("start").add_moment("end", [0.0, 0.0, 0.5 * np.pi])
 >>> result = rod.solve(n_steps=2)
 >>> bool(result.converged)
 True
@@ -33,6 +33,12 @@ def _components(components):
     return arr.tolist()
 
 
+def _flag(name, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
 @dataclass
 class Support:
     """Kinematic constraints at one node.
@@ -41,17 +47,26 @@ class Support:
     increment and of the spin increment are fixed.  ``displacement`` is the
     prescribed displacement and ``rotation_vector`` the prescribed spatial
     rotation of the node at load factor 1 (both scaled by the load factor;
-    ``R(lam) = exp(lam * rotation_vector) R0``).
+    ``R(lam) = exp(lam * rotation_vector) R0``).  With a ``basis`` (see
+    :meth:`Rod.support_basis`) the components are along its columns.
     """
     node: int
     position: np.ndarray = field(default_factory=lambda: np.zeros(3, bool))
     rotation: np.ndarray = field(default_factory=lambda: np.zeros(3, bool))
     displacement: np.ndarray = field(default_factory=lambda: np.zeros(3))
     rotation_vector: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: node-local orthonormal basis (columns) in which ``position``,
+    #: ``rotation`` and ``displacement`` are expressed; None: the spatial axes
+    #: (``rotation_vector`` is always spatial)
+    basis: np.ndarray = None
 
 
 class Rod:
     """A geometrically exact (Simo-Reissner) rod discretized with P3 elements.
+
+    Build it from a stress-free reference shape and a section, add supports
+    and loads (the methods return the rod, so calls chain), then
+    :meth:`solve`.
 
     Parameters
     ----------
@@ -63,6 +78,20 @@ class Rod:
         Number of cubic elements (>= 1).
     n_quad : int
         Gauss points per element for the internal work (default 3).
+
+    Examples
+    --------
+    A cantilever rolled into a full circle by an end moment ``2 pi EI / L``:
+
+    >>> import numpy as np
+    >>> from skfem_rod import Rod, Section, geometry
+    >>> section = Section.circle(E=1e7, nu=0.3, radius=0.01)
+    >>> rod = Rod(geometry.straight(1.0), section, n_elements=8)
+    >>> result = (rod.clamp("start")
+    ...              .add_moment("end", [0.0, 0.0, 2 * np.pi * section.EI2])
+    ...              .solve(n_steps=4))
+    >>> result.converged, bool(np.linalg.norm(result.position(1.0)) < 1e-4)
+    (True, True)
     """
 
     def __init__(self, shape, section, n_elements, n_quad=3):
@@ -74,8 +103,19 @@ class Rod:
             raise ValueError(f"section must be a skfem_rod.Section, got {type(section).__name__}")
         self.shape = shape
         self.section = section
-        self.mesh = RodMesh(shape.length, n_elements, n_quad)
+        closed = bool(getattr(shape, "closed", False))
+        self.mesh = RodMesh(shape.length, n_elements, n_quad, closed=closed)
         self.r0, self.R0 = shape(self.mesh.s_nodes)
+        if closed:                      # the ring must close up, frame included
+            ends_r, ends_R = shape(np.array([0.0, shape.length]))
+            gap = np.linalg.norm(ends_r[1] - ends_r[0]) / shape.length
+            turn = np.linalg.norm(ends_R[1] - ends_R[0])
+            if gap > 1e-8 or turn > 1e-6:
+                raise ValueError(
+                    f"a closed shape must close up: |r(L) - r(0)| / L = {gap:.3g} (allowed "
+                    f"1e-8) and |R(L) - R(0)| = {turn:.3g} (allowed 1e-6; the frame must "
+                    "turn by whole turns about the centreline, e.g. geometry.ring(..., "
+                    "twist_turns=n) with an integer n)")
         self.C = section.C
         self.eps0 = reference_strains(self.mesh, self.r0, self.R0, self.C)
         self.supports = {}
@@ -86,11 +126,41 @@ class Rod:
     # ------------------------------------------------------------------
     @property
     def length(self):
+        """Length of the rod (of its reference shape).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.length
+        1.0
+        """
         return self.mesh.length
 
     def node(self, where):
         """Global node index of ``"start"``, ``"end"`` or an arclength that
-        coincides with a node."""
+        coincides with a node.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+            An end of the rod, or the arclength of a node (nodes are at multiples
+            of ``length / (3 n_elements)``).
+
+        Returns
+        -------
+        int
+            Node index (dofs ``6 node + c``: ``c`` 0..2 position, 3..5 spin).
+            scikit-fem numbers the element ends first (node ``k`` at
+            ``s = k L / n_elements``), then the interior nodes.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.node("start"), rod.node("end"), rod.node(0.25)
+        (0, 4, 1)
+        """
         if isinstance(where, str):
             if where not in ("start", "end"):
                 raise ValueError(f"where must be 'start', 'end' or a nodal arclength, got {where!r}")
@@ -113,30 +183,117 @@ class Rod:
 
     # supports ------------------------------------------------------------
     def clamp(self, where):
-        """Fix position and rotation of the node at ``where``."""
+        """Fix position and rotation of the node at ``where``.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+            See :meth:`node`.
+
+        Returns
+        -------
+        Rod
+            The rod itself (calls chain).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.clamp("start").fixed_dofs()[:6]
+        array([ True,  True,  True,  True,  True,  True])
+        """
         sup = self._support(where)
         sup.position[:] = True
         sup.rotation[:] = True
         return self
 
     def pin(self, where, components=(0, 1, 2)):
-        """Fix (components of) the position; the rotation stays free."""
+        """Fix (components of) the position at ``where``; the rotation stays
+        free.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+            See :meth:`node`.
+        components : sequence of int, default (0, 1, 2)
+            Spatial axes to fix (0 x, 1 y, 2 z).
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        A simply supported beam: pinned at one end, on a roller (y, z held) at the
+        other, twist held at the first:
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod = rod.pin("start").fix_rotation("start", [0]).pin("end", (1, 2))
+        >>> rod.check_constraints()          # no rigid-body mode left
+        """
         comps = _components(components)
         sup = self._support(where)
         sup.position[comps] = True
         return self
 
     def fix_rotation(self, where, components=(0, 1, 2)):
-        """Fix spin components (spatial axes) of the node at ``where``."""
+        """Fix spin components (about spatial axes) of the node at ``where``.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+        components : sequence of int, default (0, 1, 2)
+            Spatial axes about which the node may not turn.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> n = rod.node("end")
+        >>> rod.fix_rotation("end", [0]).fixed_dofs()[6 * n:6 * n + 6]
+        array([False, False, False,  True, False, False])
+        """
         comps = _components(components)
         sup = self._support(where)
         sup.rotation[comps] = True
         return self
 
     def prescribe_rotation(self, where, rotation_vector):
-        """Prescribe the node rotation ``exp(lam * rotation_vector) R0``
-        (spatial rotation vector at load factor 1; e.g. ``2 pi N`` about the
-        axis twists by ``N`` turns, the paper's ``theta(l) = theta^l``)."""
+        """Prescribe the rotation of the node at ``where``:
+        ``R(lam) = exp(lam * rotation_vector) R0``.
+
+        The rotation vector is spatial, at load factor 1; e.g. ``2 pi N`` about
+        the rod's axis twists the end by ``N`` turns (the paper's
+        ``theta(l) = theta^l``).  All three spin components of the node are held.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+        rotation_vector : array_like (3,)
+            Rotation vector (rad) reached at load factor 1.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        Twist a straight rod by a quarter turn; the torque is ``GJ phi / L``:
+
+        >>> import numpy as np
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.clamp("start").pin("end").prescribe_rotation("end", [np.pi / 2, 0, 0])  # doctest: +ELLIPSIS
+        <skfem_rod.model.Rod object at ...>
+        >>> torque = rod.solve(2).reaction("end")[1][0]
+        >>> bool(np.isclose(torque, rod.section.GJ * np.pi / 2, rtol=1e-8))
+        True
+        """
         rotvec = _vector("rotation_vector", rotation_vector)
         sup = self._support(where)
         sup.rotation[:] = True
@@ -144,7 +301,33 @@ class Rod:
         return self
 
     def prescribe_displacement(self, where, displacement, components=(0, 1, 2)):
-        """Prescribe displacement components (total at load factor 1)."""
+        """Prescribe displacement components of the node at ``where`` (total
+        at load factor 1, scaled with the load factor).
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+        displacement : array_like (3,)
+            Displacement reached at load factor 1 (only ``components`` are used).
+        components : sequence of int, default (0, 1, 2)
+            Spatial axes prescribed.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        Stretch a bar by 1 %; the end force is ``EA * 0.01``:
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod = rod.clamp("start").prescribe_displacement("end", [0.01, 0, 0], components=[0])
+        >>> rod = rod.fix_rotation("end")
+        >>> force = rod.solve(1).reaction("end")[0]
+        >>> round(float(force[0] / (rod.section.EA * 0.01)), 8)
+        1.0
+        """
         comps = _components(components)
         d = _vector("displacement", displacement)
         sup = self._support(where)
@@ -153,28 +336,127 @@ class Rod:
         return self
 
     # loads ------------------------------------------------------------------
-    def add_force(self, where, force, follower=False):
-        """End (point) force at load factor 1; ``follower=True`` makes it
-        rotate with the cross-section."""
+    def add_force(self, where, force, follower=False, constant=False):
+        """End (point) force at load factor 1.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+        force : array_like (3,)
+            Force at load factor 1 (scaled with the load factor).
+        follower : bool, default False
+            Rotate the force with the cross-section (``R R0^T F``); otherwise it
+            keeps its spatial direction (dead load).
+        constant : bool, default False
+            A preload, applied in full at every load factor (also in the
+            reference state solved at load factor 0), e.g. a tension held while an
+            end turns.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        A tip-loaded cantilever (small load: the Euler-Bernoulli deflection
+        ``P L^3 / 3 EI`` plus the shear part ``P L / GA``):
+
+        >>> import numpy as np
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> P = 1e-3 * rod.section.EI2
+        >>> result = rod.clamp("start").add_force("end", [0.0, P, 0.0]).solve(1)
+        >>> w = result.position(1.0)[0, 1]
+        >>> exact = P / (3 * rod.section.EI2) + P / rod.section.GA1
+        >>> bool(abs(w / exact - 1) < 1e-3)
+        True
+        """
         self.point_loads.append(PointLoad(self.node(where), _vector("force", force),
-                                          "force", bool(follower)))
+                                          "force", bool(follower), _flag("constant", constant)))
         return self
 
-    def add_moment(self, where, moment, follower=False):
-        """End (point) moment at load factor 1 (dead: fixed spatial axis)."""
+    def add_moment(self, where, moment, follower=False, constant=False):
+        """End (point) moment at load factor 1.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+        moment : array_like (3,)
+            Moment at load factor 1.  Dead (fixed spatial axis) unless
+            ``follower=True`` (``R R0^T M``).
+        follower : bool, default False
+        constant : bool, default False
+            A preload, as in :meth:`add_force`.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_moment("end", [0, 0, np.pi * rod.section.EI2]).solve(2)
+        >>> np.round(result.position(1.0)[0], 5) + 0.0    # a half circle: tip at (0, 2/pi, 0)
+        array([0.     , 0.63662, 0.     ])
+        """
         self.point_loads.append(PointLoad(self.node(where), _vector("moment", moment),
-                                          "moment", bool(follower)))
+                                          "moment", bool(follower), _flag("constant", constant)))
         return self
 
     def add_distributed_force(self, force):
-        """Dead force per unit reference length: a 3-vector or a callable
-        ``s -> (n, 3)`` (e.g. gravity ``rho A g``)."""
+        """Dead force per unit reference length, at load factor 1.
+
+        Parameters
+        ----------
+        force : array_like (3,) or callable
+            A constant vector, or a callable ``s -> (len(s), 3)`` of the
+            arclength (e.g. gravity ``rho A g``, or a load on part of the rod).
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        A cantilever under its own weight (small load): tip deflection
+        ``q L^4 / 8 EI`` plus the shear part ``q L^2 / 2 GA``:
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> q = 1e-3 * rod.section.EI2
+        >>> result = rod.clamp("start").add_distributed_force([0.0, 0.0, -q]).solve(1)
+        >>> exact = q / (8 * rod.section.EI1) + q / (2 * rod.section.GA2)
+        >>> bool(abs(-result.position(1.0)[0, 2] / exact - 1) < 1e-3)
+        True
+        """
         self.distributed.append(DistributedLoad(self._distributed_value("force", force),
                                                 "force"))
         return self
 
     def add_distributed_torque(self, torque):
-        """Dead torque per unit reference length (3-vector or callable)."""
+        """Dead torque per unit reference length (3-vector or callable
+        ``s -> (len(s), 3)``), at load factor 1.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        A uniform twisting torque ``t`` on a clamped rod: the end turns by
+        ``t L^2 / 2 GJ``:
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> t = 0.1 * rod.section.GJ
+        >>> result = rod.clamp("start").add_distributed_torque([t, 0.0, 0.0]).solve(1)
+        >>> import numpy as np
+        >>> angle = np.arctan2(result.frame(1.0)[0][2, 0], result.frame(1.0)[0][1, 0])
+        >>> round(float(angle), 10)
+        0.05
+        """
         self.distributed.append(DistributedLoad(self._distributed_value("torque", torque),
                                                 "torque"))
         return self
@@ -196,8 +478,33 @@ class Rod:
         return value
 
     def enable_contact(self, radius=None, penalty=None, exclusion=None, **options):
-        """Switch self-contact on (see :class:`skfem_rod.contact.ContactOptions`
-        for ``n_slave``, ``tolerance``, ``max_uzawa``, ``margin``)."""
+        """Switch self-contact on (augmented Lagrangian with Uzawa updates).
+
+        Parameters
+        ----------
+        radius : float, optional
+            Contact radius ``eps`` (two strands touch at centreline distance
+            ``2 eps``); default: ``section.radius``.
+        penalty : float, optional
+            Normal penalty ``mu_N``; default ``10 eps^4 / EI``.
+        exclusion : float, optional
+            Arclength ``L_ex`` around a point that is never in contact with it;
+            default ``pi eps``.
+        **options
+            ``n_slave``, ``tolerance``, ``max_uzawa``, ``margin`` and the friction
+            options: see :class:`skfem_rod.contact.ContactOptions`.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.enable_contact().contact.radius
+        0.01
+        """
         from .contact import ContactOptions
         eps = self.section.radius if radius is None else radius
         if eps is None:
@@ -211,9 +518,90 @@ class Rod:
             exclusion=np.pi * eps if exclusion is None else exclusion, **options)
         return self
 
+    def support_basis(self, where, basis):
+        """Express the supports of the node at ``where`` in a local
+        orthonormal basis: the ``components`` of :meth:`pin`,
+        :meth:`fix_rotation` and :meth:`prescribe_displacement` (and its
+        ``displacement``) then refer to the columns of ``basis`` instead of
+        the spatial axes x, y, z, so a node can be held along or about any
+        direction (a roller on an inclined plane, sliding along a line,
+        turning about a skew axis).  The rotation vector of
+        :meth:`prescribe_rotation` stays spatial.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+        basis : array_like (3, 3)
+            Orthonormal matrix whose columns are the local axes.
+
+        Returns
+        -------
+        Rod
+
+        Examples
+        --------
+        A cantilever whose tip slides on the plane normal to ``n = (0, 1,
+        1)/sqrt(2)`` (held along ``n`` only): its tip moves in that plane.
+
+        >>> import numpy as np
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> n = np.array([0.0, 1.0, 1.0]) / np.sqrt(2)
+        >>> Q = np.column_stack([n, [0.0, 1.0, -1.0] / np.sqrt(2), [1.0, 0.0, 0.0]])
+        >>> rod = rod.clamp("start").support_basis("end", Q).pin("end", [0])
+        >>> res = rod.add_force("end", [0.0, 0.0, -1.0]).solve(2)
+        >>> bool(abs((res.position(1.0) - [1.0, 0.0, 0.0]) @ n) < 1e-12)
+        True
+        """
+        Q = np.asarray(basis, dtype=float)
+        if Q.shape != (3, 3) or not np.all(np.isfinite(Q)):
+            raise ValueError(f"basis must be a finite 3 x 3 matrix, got shape {Q.shape}")
+        if not np.allclose(Q.T @ Q, np.eye(3), atol=1e-10):
+            raise ValueError("basis must be orthonormal (columns of unit length, mutually "
+                             f"orthogonal); Q^T Q - I has norm {np.linalg.norm(Q.T @ Q - np.eye(3)):.3g}")
+        self._support(where).basis = Q
+        return self
+
+    def dof_basis(self):
+        """Sparse orthogonal matrix ``T`` (CSC) with ``y_spatial = T y_local``
+        over all dofs: the :meth:`support_basis` blocks at their nodes, the
+        identity elsewhere; None when no node has a basis.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 2)
+        >>> rod.dof_basis() is None
+        True
+        >>> Q = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+        >>> T = rod.support_basis("end", Q).dof_basis()
+        >>> n = rod.node("end")
+        >>> bool(np.allclose(T[6 * n:6 * n + 3, 6 * n:6 * n + 3].toarray(), Q))
+        True
+        """
+        nodes = [(n, sup.basis) for n, sup in self.supports.items() if sup.basis is not None]
+        if not nodes:
+            return None
+        import scipy.sparse as sp
+        n = self.mesh.n_dofs
+        B = np.broadcast_to(np.eye(3), (2 * self.mesh.n_nodes, 3, 3)).copy()
+        for node, Q in nodes:
+            B[2 * node] = B[2 * node + 1] = Q
+        nb = B.shape[0]
+        return sp.bsr_matrix((B, np.arange(nb), np.arange(nb + 1)), shape=(n, n)).tocsc()
+
     # ------------------------------------------------------------------------
     def fixed_dofs(self):
-        """Boolean mask of the constrained global dofs."""
+        """Boolean mask of the constrained global dofs (``6 node + c``).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> int(rod.clamp("start").pin("end").fixed_dofs().sum())
+        9
+        """
         mask = np.zeros(self.mesh.n_dofs, bool)
         for n, sup in self.supports.items():
             mask[6 * n:6 * n + 3] |= sup.position
@@ -221,7 +609,19 @@ class Rod:
         return mask
 
     def check_constraints(self):
-        """Raise ValueError if a rigid-body mode is left unconstrained."""
+        """Raise ValueError if the supports leave a rigid-body mode free.
+
+        The message names each free mode (a translation or a rotation axis).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.pin("start").check_constraints()
+        Traceback (most recent call last):
+        ...
+        ValueError: supports leave rigid-body mode(s) unconstrained: ...
+        """
         fixed = self.fixed_dofs()
         modes = np.zeros((self.mesh.n_dofs, 6))
         centre = self.r0.mean(axis=0)
@@ -233,6 +633,9 @@ class Rod:
             modes[1::6, 3 + k] = np.cross(e, self.r0 - centre)[:, 1]
             modes[2::6, 3 + k] = np.cross(e, self.r0 - centre)[:, 2]
             modes[3 + k::6, 3 + k] = 1.0
+        T = self.dof_basis()
+        if T is not None:                       # modes in the supports' bases
+            modes = T.T @ modes
         Mc = modes[fixed]
         if Mc.shape[0] == 0:
             free = np.eye(6)
@@ -273,12 +676,38 @@ class Rod:
         **options
             See :class:`skfem_rod.solver.SolverOptions` (``rtol``,
             ``max_iterations``, ``line_search``, ``min_step``, ...).
+            ``method="arclength"`` follows the path by pseudo-arclength
+            continuation instead (through limit points; ``path`` must then
+            be ``(0, lam_end)``, ``n_steps`` sets the initial load step
+            ``lam_end / n_steps``; further options of
+            :func:`skfem_rod.continuation.follow`, e.g. ``stability=True``).
 
         Returns
         -------
         Result
             Every converged step; ``result.converged`` and
             ``result.message`` say whether and where it stopped.
+            (:class:`skfem_rod.continuation.PathResult` for ``"arclength"``.)
+
+        Examples
+        --------
+        Load and unload a cantilever in 2 + 2 steps; the energy returns to 0:
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod = rod.clamp("start").add_force("end", [0.0, 0.05, 0.0])
+        >>> result = rod.solve(4, path=[0, 1, 0])
+        >>> result.load_factors
+        array([0. , 0.5, 1. , 0.5, 0. ])
+        >>> bool(result.energies[2] > 0 and abs(result.energies[-1]) < 1e-20)
+        True
         """
+        method = options.pop("method", "newton")
+        if method == "arclength":
+            from .continuation import solve_arclength
+            return solve_arclength(self, n_steps=n_steps, path=path, callback=callback,
+                                   **options)
+        if method != "newton":
+            raise ValueError(f"method must be 'newton' or 'arclength', got {method!r}")
         from .solver import solve
         return solve(self, n_steps=n_steps, path=path, callback=callback, **options)

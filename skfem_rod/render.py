@@ -26,7 +26,9 @@ import numpy as np
 
 from .export import _atomic_path, _validate_points_frames
 
-__all__ = ["tube_mesh", "render_rod", "ROD_COLOR", "STRIPE_COLOR"]
+__all__ = ["tube_mesh", "render_rod", "ROD_COLOR", "STRIPE_COLOR", "STATE_NAMES",
+           "STATE_COLORS", "contact_state_colors", "render_contact_states",
+           "render_animation"]
 
 ROD_COLOR = "#4f81bd"       # base colour of the tube (blue)
 STRIPE_COLOR = "#d62728"    # material line along d1 (red)
@@ -478,3 +480,316 @@ def _arrow_mesh(pv, glyphs, rod_points):
     cloud.point_data["magnitude"] = mags
     geom = pv.Arrow(tip_length=0.25, tip_radius=0.08, shaft_radius=0.03)
     return cloud.glyph(orient="vectors", scale="magnitude", factor=scale, geom=geom)
+
+
+# --------------------------------------------------------------------------
+# contact states (open / stick / slip) and animations
+# --------------------------------------------------------------------------
+#: Names of the contact states, indexed by the integer state of
+#: :class:`skfem_rod.contact.friction.FrictionState` (0 open, 1 stick, 2 slip).
+STATE_NAMES = ("open", "stick", "slip")
+#: Marker colour per contact state: open grey, stick green, slip orange.
+STATE_COLORS = ("#9e9e9e", "#2ca02c", "#ff7f0e")
+
+
+def contact_state_colors(states):
+    """RGB colours of contact markers from their integer states.
+
+    Parameters
+    ----------
+    states : array_like of int, (m,)
+        ``0`` open, ``1`` stick, ``2`` slip (the values of
+        :class:`skfem_rod.contact.friction.FrictionState`).
+
+    Returns
+    -------
+    numpy.ndarray, (m, 3), uint8
+        One colour of :data:`STATE_COLORS` per marker, ready for the
+        ``contact_colors`` argument of :func:`render_rod`.
+
+    Examples
+    --------
+    >>> contact_state_colors([0, 1, 2]).tolist()
+    [[158, 158, 158], [44, 160, 44], [255, 127, 14]]
+    """
+    a = np.asarray(states)
+    if a.ndim != 1 or (a.size and a.dtype.kind not in "iub"):
+        raise ValueError(
+            f"states = {states!r}; expected a 1D array of integer contact states "
+            f"(0 open, 1 stick, 2 slip)"
+        )
+    a = a.astype(int)
+    bad = (a < 0) | (a >= len(STATE_COLORS))
+    if np.any(bad):
+        raise ValueError(
+            f"states contains {sorted(set(a[bad].tolist()))}; allowed contact states "
+            f"are 0 (open), 1 (stick) and 2 (slip)"
+        )
+    table = np.array([[int(c[i:i + 2], 16) for i in (1, 3, 5)] for c in STATE_COLORS],
+                     dtype=np.uint8)
+    return table[a]
+
+
+def _legend_font(size):
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:  # pragma: no cover - Pillow < 10.1
+        return ImageFont.load_default()
+
+
+def _draw_state_legend(img, states=None):
+    """Draw the open/stick/slip legend in the lower left corner of an RGB image
+    (``(h, w, 3)`` uint8); only the states present in ``states`` are listed
+    (all three when ``states`` is None).  Returns a new array."""
+    from PIL import Image, ImageDraw
+
+    present = range(len(STATE_NAMES)) if states is None else sorted(set(np.asarray(states, int).tolist()))
+    h = img.shape[0]
+    size = max(10, round(16 * h / 768))
+    font = _legend_font(size)
+    im = Image.fromarray(np.ascontiguousarray(img[..., :3]))
+    draw = ImageDraw.Draw(im)
+    x0, y = size, h - size - (size + size // 2) * len(present)
+    for k in present:
+        draw.ellipse([x0, y, x0 + size, y + size], fill=STATE_COLORS[k], outline="#333333")
+        draw.text((x0 + 1.5 * size, y - size // 8), STATE_NAMES[k], fill="#222222", font=font)
+        y += size + size // 2
+    return np.asarray(im)
+
+
+def render_contact_states(filename, points, frames, radius, contact_points, states, *,
+                          legend=True, **kwargs):
+    """Render the rod with contact markers coloured by their state.
+
+    The markers are the spheres of :func:`render_rod` at ``contact_points``,
+    coloured open grey, stick green, slip orange (:data:`STATE_COLORS`);
+    with ``legend=True`` the states present are named in the lower left
+    corner.  The PNG is written atomically.
+
+    Parameters
+    ----------
+    filename, points, frames, radius
+        As in :func:`render_rod`.
+    contact_points : array_like, (m, 3)
+        Marker positions (e.g. the slave points of the contact pairs).
+    states : array_like of int, (m,)
+        ``0`` open, ``1`` stick, ``2`` slip.
+    legend : bool, default True
+        Name the states shown.
+    **kwargs
+        Passed on to :func:`render_rod` (``window_size``, ``title``,
+        ``camera``, ``glyphs`` ...; not ``contact_colors``).
+
+    Returns
+    -------
+    str
+        ``filename``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = np.linspace(0, 1, 20)
+    >>> pts = np.c_[s, 0 * s, 0 * s]
+    >>> R = np.repeat([[[0, 0, 1], [0, 1, 0], [-1, 0, 0]]], 20, axis=0)  # d3 = +x
+    >>> render_contact_states("states.png", pts, R, 0.02, pts[[5, 10, 15]],
+    ...                       [0, 1, 2], window_size=(320, 240))  # doctest: +SKIP
+    'states.png'
+    """
+    if "contact_colors" in kwargs:
+        raise ValueError("render_contact_states colours the markers by state; "
+                         "do not pass contact_colors (use render_rod for free colours)")
+    cp = _as_points("contact_points", contact_points)
+    colors = contact_state_colors(states)
+    if len(colors) != len(cp):
+        raise ValueError(
+            f"states has {len(colors)} entries but contact_points has {len(cp)} points; "
+            f"give one state per point"
+        )
+    render_rod(filename, points, frames, radius, contact_points=cp,
+               contact_colors=colors, **kwargs)
+    if legend and len(cp):
+        from PIL import Image
+
+        img = _draw_state_legend(np.asarray(Image.open(filename).convert("RGB")), states)
+        with _atomic_path(filename) as tmp:
+            Image.fromarray(img).save(tmp, format="PNG")
+    return os.fspath(filename)
+
+
+def render_animation(filename, configurations, radius, *, window_size=(640, 480),
+                     fps=4, titles=None, camera="iso", contact_points=None,
+                     contact_states=None, color=ROD_COLOR, stripe_color=STRIPE_COLOR,
+                     stripe_width=0.35, n_around=32, background="white",
+                     hold_last=2, off_screen=None):
+    """Write an animated GIF of a sequence of rod configurations (a load path).
+
+    Every frame is drawn like :func:`render_rod` (tube with the ``d1``
+    stripe, optional contact markers) by one off-screen plotter with **one
+    camera for all frames**, fitted to the union of all configurations, so
+    the rod moves inside a fixed view.  The frames are assembled into a
+    looping GIF with Pillow (already a dependency of pyvista and matplotlib;
+    no video codec needed) and written atomically.
+
+    Parameters
+    ----------
+    filename : str or os.PathLike
+        Output ``.gif``.
+    configurations : sequence of (points, frames)
+        One ``((n, 3), (n, 3, 3))`` pair per frame, as in :func:`render_rod`
+        (``n`` may change between frames).
+    radius : float
+        Tube radius.
+    window_size : (int, int), default (640, 480)
+        Frame size in pixels.
+    fps : float, default 4
+        Frames per second.
+    titles : sequence of str, optional
+        One caption per frame (e.g. the load factor).
+    camera : str or array_like (3,), default "iso"
+        A pyvista view (``"iso"``, ``"xy"``, ...) or a view direction (from
+        the scene towards the camera, e.g. ``(0, -0.6, 1)``: from above,
+        tilted); the view is then fitted to all frames.
+    contact_points : sequence of array_like (m_k, 3), optional
+        Contact markers per frame.
+    contact_states : sequence of array_like (m_k,), optional
+        Integer states per frame (0 open, 1 stick, 2 slip); without them the
+        markers take the default contact colour.
+    color, stripe_color, stripe_width, n_around, background
+        As in :func:`render_rod`.
+    hold_last : int, default 2
+        Repeat the last frame this many extra times (a pause before the
+        loop restarts).
+    off_screen : bool, optional
+        As in :func:`render_rod`.
+
+    Returns
+    -------
+    str
+        ``filename``.
+
+    Examples
+    --------
+    A rod rolling up under a growing end moment (``result`` from
+    :meth:`skfem_rod.Rod.solve`)::
+
+        confs = [(f["r"], f["R"]) for f in (result.sample(8, k)
+                                            for k in range(len(result.steps)))]
+        render_animation("rollup.gif", confs, radius=0.02,
+                         titles=[f"load factor {st.load_factor:.2f}"
+                                 for st in result.steps])
+    """
+    pv = _pyvista(off_screen)
+    confs = list(configurations)
+    if not confs:
+        raise ValueError("configurations is empty; give at least one (points, frames) pair")
+    try:
+        width, height = (int(v) for v in window_size)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"window_size = {window_size!r}; expected (width, height) in pixels"
+        ) from exc
+    if width < 16 or height < 16:
+        raise ValueError(f"window_size = {window_size!r}; width and height must be >= 16")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps = {fps!r}; expected a number > 0")
+    for name, seq in (("titles", titles), ("contact_points", contact_points),
+                      ("contact_states", contact_states)):
+        if seq is not None and len(seq) != len(confs):
+            raise ValueError(f"{name} has {len(seq)} entries for {len(confs)} "
+                             f"configurations; give one per configuration")
+    if contact_states is not None and contact_points is None:
+        raise ValueError("contact_states needs contact_points (one array per frame)")
+
+    tubes, markers = [], []
+    for k, (pts, frs) in enumerate(confs):
+        pts, frs = _validate_points_frames(pts, frs)
+        r = _radii(radius, pts.shape[0])
+        tube = tube_mesh(pts, frs, r, n_around=n_around, stripe_width=stripe_width)
+        tube.point_data["stripe_coord"] = np.where(
+            tube.point_data["cap"] == 1, np.pi, np.abs(tube.point_data["phi"]))
+        tubes.append(tube)
+        cloud = None
+        if contact_points is not None:
+            cp = (np.zeros((0, 3)) if np.size(contact_points[k]) == 0
+                  else _as_points(f"contact_points[{k}]", contact_points[k]))
+            if len(cp):
+                cloud = pv.PolyData(cp)
+                if contact_states is not None:
+                    rgb = contact_state_colors(contact_states[k])
+                    if len(rgb) != len(cp):
+                        raise ValueError(
+                            f"contact_states[{k}] has {len(rgb)} entries but "
+                            f"contact_points[{k}] has {len(cp)} points")
+                    cloud.point_data["rgb"] = rgb
+                cloud = cloud.glyph(geom=pv.Sphere(radius=1.25 * r.max(), theta_resolution=16,
+                                                   phi_resolution=16), scale=False, orient=False)
+        markers.append(cloud)
+
+    all_pts = np.vstack([t.points for t in tubes] + [m.points for m in markers if m is not None])
+    if len(all_pts) > 50000:
+        all_pts = all_pts[:: len(all_pts) // 50000 + 1]
+    lo, hi = all_pts.min(axis=0), all_pts.max(axis=0)
+    bounds = (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
+    cmap = _color_lut(pv, color, stripe_color, stripe_width)
+    text_color = "black" if np.mean(pv.Color(background).float_rgb) > 0.5 else "white"
+
+    images = []
+    pl = pv.Plotter(off_screen=True, window_size=(width, height), lighting="three lights")
+    try:
+        pl.set_background(background)
+        try:
+            pl.enable_anti_aliasing("ssaa")
+        except Exception:  # pragma: no cover - depends on the VTK build
+            pass
+        if isinstance(camera, str):
+            pl.camera_position = camera
+        else:
+            view = np.asarray(camera, dtype=float)
+            if view.shape != (3,) or not np.all(np.isfinite(view)) or not view.any():
+                raise ValueError(f"camera = {camera!r}; expected a pyvista view name "
+                                 f"('iso', 'xy', ...) or a non-zero 3-vector")
+            pl.view_vector(view)
+        pl.reset_camera(bounds=bounds)
+        _fit_camera(pl, all_pts, 0.8 if titles else 0.9)
+        cam = pl.camera.copy()
+        for k, tube in enumerate(tubes):
+            pl.add_mesh(tube, scalars="stripe_coord", clim=(0.0, np.pi), cmap=cmap,
+                        interpolate_before_map=True, show_scalar_bar=False,
+                        smooth_shading=True, specular=0.3, specular_power=20,
+                        ambient=0.2, name="rod", reset_camera=False)
+            if markers[k] is not None:
+                kw = ({"scalars": "rgb", "rgb": True} if "rgb" in markers[k].point_data
+                      else {"color": CONTACT_COLOR})
+                pl.add_mesh(markers[k], smooth_shading=True, show_scalar_bar=False,
+                            ambient=0.2, name="contacts", reset_camera=False, **kw)
+            else:
+                pl.remove_actor("contacts")
+            if titles:
+                pl.add_text(str(titles[k]), position="upper_edge", name="title",
+                            font_size=max(8, round(14 * height / 768)), color=text_color)
+            pl.camera = cam.copy()
+            img = np.asarray(pl.screenshot(None, return_img=True))[..., :3]
+            if contact_states is not None and markers[k] is not None:
+                img = _draw_state_legend(img, contact_states[k])
+            images.append(np.ascontiguousarray(img))
+    finally:
+        pl.close()
+
+    if images[0].shape[:2] != (height, width):
+        raise RuntimeError(
+            f"renderer produced frames of {images[0].shape[1]}x{images[0].shape[0]} "
+            f"pixels, not the requested {width}x{height}")
+    from PIL import Image
+
+    pics = [Image.fromarray(im) for im in images]
+    pics += [pics[-1]] * int(max(hold_last, 0))
+    # one adaptive palette from all frames keeps the colours steady
+    palette = Image.fromarray(np.vstack(images[:: max(1, len(images) // 8)])).quantize(
+        colors=255, method=Image.Quantize.MEDIANCUT)
+    frames_p = [p.quantize(palette=palette, dither=Image.Dither.NONE) for p in pics]
+    with _atomic_path(filename) as tmp:
+        frames_p[0].save(tmp, format="GIF", save_all=True, append_images=frames_p[1:],
+                         duration=round(1000 / fps), loop=0, disposal=1)
+    return os.fspath(filename)

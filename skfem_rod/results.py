@@ -20,6 +20,8 @@ class Step:
     reactions: dict                # node -> (force (3,), moment (3,))
     contact: object = None         # ContactState of the step (contact on only)
     time: float = 0.0              # pseudo-time along the load path
+    flow_steps: int = 0            # gradient-flow steps (solve option snap="relax")
+    lowest_eigenvalue: float = None  # of the symmetrized tangent (option stability)
 
 
 @dataclass
@@ -37,6 +39,18 @@ class ContactState:
     uzawa_converged: bool
     newton_total: int        # Newton iterations over all Uzawa passes
     candidates: int          # narrow-phase candidate pairs (broad phase output)
+    # friction (None when gamma_T = gamma_R = 0): per point, f on the master
+    force_T: np.ndarray = None   # (m, 3) tangential friction force per unit length
+    force_R: np.ndarray = None   # (m, 3) rotational friction couple per unit length
+    state_T: np.ndarray = None   # (m,) FrictionState: 0 open, 1 stick, 2 slip
+    state_R: np.ndarray = None
+    slip_T: np.ndarray = None    # (m, 3) slip increments of the step
+    slip_R: np.ndarray = None
+    dissipation: float = 0.0     # friction work dissipated in the step
+
+    @property
+    def friction(self):
+        return self.force_T is not None
 
     @property
     def total_force(self):
@@ -46,7 +60,7 @@ class ContactState:
 
 
 class Result:
-    """Converged load path of a rod.
+    """Converged load path of a rod, returned by :meth:`skfem_rod.Rod.solve`.
 
     Attributes
     ----------
@@ -58,6 +72,17 @@ class Result:
         How the solve ended (where and why it stopped, if it did).
     log : list of str
         Step cuts and other events along the way.
+
+    Examples
+    --------
+    >>> from skfem_rod import Rod, Section, geometry
+    >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+    >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+    >>> result.converged, len(result.steps)
+    (True, 3)
+    >>> result.message
+    'converged: 2 steps to the end of the load path (load factor 1)'
+    >>> tip = result.position(1.0)[0]          # at any arclength and step
     """
 
     def __init__(self, rod):
@@ -69,13 +94,22 @@ class Result:
 
     # building ----------------------------------------------------------
     def append(self, lam, r, R, info, time=None):
+        """Add a converged step (used by the solver while it follows the load
+        path; ``info`` holds its residual (in the supports' bases, see
+        ``Rod.support_basis``; reactions are stored spatial), iterations and
+        internal work).
+        """
         res = info.get("res")
         reactions = {}
         for n in self.rod.supports:
             if res is None:
                 reactions[n] = (np.zeros(3), np.zeros(3))
             else:
-                reactions[n] = (res[6 * n:6 * n + 3].copy(), res[6 * n + 3:6 * n + 6].copy())
+                f, m = res[6 * n:6 * n + 3].copy(), res[6 * n + 3:6 * n + 6].copy()
+                Q = self.rod.supports[n].basis
+                if Q is not None:           # the residual is in the support's basis
+                    f, m = Q @ f, Q @ m
+                reactions[n] = (f, m)
         iw = info.get("iw")
         contact = None
         if iw is not None and getattr(iw, "contact", None) is not None:
@@ -91,14 +125,26 @@ class Result:
                 uzawa_converged=bool(info.get("uzawa_converged", True)),
                 newton_total=int(info.get("newton_total", info["iterations"])),
                 candidates=int(pairs.n_candidates))
+            fr = getattr(iw, "friction", None)
+            if fr is not None:
+                w = pairs.weight[fr.index]
+                contact.force_T, contact.force_R = fr.force_T, fr.force_R
+                contact.state_T, contact.state_R = fr.state_T, fr.state_R
+                contact.slip_T, contact.slip_R = fr.slip_T, fr.slip_R
+                contact.dissipation = float(np.sum(w * (np.sum(fr.force_T * fr.slip_T, 1)
+                                                        + np.sum(fr.force_R * fr.slip_R, 1))))
         self.steps.append(Step(load_factor=float(lam), r=r.copy(), R=R.copy(),
                                iterations=int(info["iterations"]),
                                residual_history=list(info["history"]),
                                energy=float(iw.energy) if iw is not None else 0.0,
                                reactions=reactions, contact=contact,
-                               time=float(lam if time is None else time)))
+                               time=float(lam if time is None else time),
+                               flow_steps=int(info.get("flow_steps", 0)),
+                               lowest_eigenvalue=info.get("lowest_eigenvalue")))
 
     def finish(self, converged, message):
+        """Record how the solve ended (used by the solver).
+        """
         self.converged = bool(converged)
         self.message = message
 
@@ -109,41 +155,128 @@ class Result:
     # load path ---------------------------------------------------------
     @property
     def load_factors(self):
+        """Load factor of every step, ``(n_steps,)``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.load_factors
+        array([0. , 0.5, 1. ])
+        """
         return np.array([s.load_factor for s in self.steps])
 
     @property
     def iterations(self):
+        """Newton iterations of every step, ``(n_steps,)`` (0 for the
+        reference state).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.iterations.shape
+        (3,)
+        """
         return np.array([s.iterations for s in self.steps])
 
     @property
     def energies(self):
+        """Strain energy of every step, ``(n_steps,)``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> bool(result.energies[0] == 0 and result.energies[2] > result.energies[1] > 0)
+        True
+        """
         return np.array([s.energy for s in self.steps])
 
     def reaction(self, where, step=-1):
-        """(force, moment) the support at ``where`` exerts on the rod."""
+        """Force and moment that the support at ``where`` exerts on the rod.
+
+        Parameters
+        ----------
+        where : {"start", "end"} or float
+            A supported node (see :meth:`skfem_rod.Rod.node`).
+        step : int, default -1
+            Step index.
+
+        Returns
+        -------
+        force, moment : numpy.ndarray (3,)
+            Spatial components; the moment is about the node.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> force, moment = result.reaction("start")
+        >>> np.round(force, 10) + 0.0                  # balances the tip load
+        array([ 0.  , -0.01,  0.  ])
+        """
         n = self.rod.node(where)
         return self.steps[step].reactions[n]
 
     # fields --------------------------------------------------------------
     def nodes(self, step=-1):
-        """Nodal arclengths, positions and rotations ordered along the rod."""
+        """Nodal arclengths, positions and rotations, ordered along the rod.
+
+        Returns
+        -------
+        s : numpy.ndarray (n,)
+        r : numpy.ndarray (n, 3)
+        R : numpy.ndarray (n, 3, 3)
+            Columns ``d1, d2, d3``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> s, r, R = result.nodes()
+        >>> s.shape, r.shape, R.shape
+        ((13,), (13, 3), (13, 3, 3))
+        """
         o = self.rod.mesh.order
         st = self.steps[step]
         return self.rod.mesh.s_nodes[o], st.r[o], st.R[o]
 
     def evaluate(self, s, step=-1):
-        """Fields at arclengths ``s``: dict with ``r`` (n,3), ``R`` (n,3,3),
-        strains ``v``, ``u`` and their reference values, and spatial stress
-        resultants ``n``, ``m`` (n,3) (force and moment that the part beyond
-        ``s`` exerts on the part before it).
+        """Fields at arclengths ``s`` of a step.
 
-        Strains are those of the interpolated configuration.  The resultants
-        are recovered from the Gauss points, where the strains of the
-        displacement formulation are accurate (Barlow points), by the
-        Lagrange polynomial through them: away from those points a stiff
-        rod's ``EA (v3 - 1)`` magnifies the interpolation error (a cantilever
-        with EA = 1e6 gave n = (719, -231, 0) instead of (0, 5, 0) at the
-        element ends).
+        Returns a dict with ``r`` (n, 3), ``R`` (n, 3, 3), the strains ``v``,
+        ``u`` and their reference values ``v0``, ``u0`` (material frame), and the
+        spatial stress resultants ``n``, ``m`` (n, 3): force and moment that the
+        part beyond ``s`` exerts on the part before it.
+
+        Strains are those of the interpolated configuration.  The resultants are
+        recovered from the Gauss points, where the strains of the displacement
+        formulation are accurate (Barlow points), by the Lagrange polynomial
+        through them: away from those points a stiff rod's ``EA (v3 - 1)``
+        magnifies the interpolation error (a cantilever with EA = 1e6 gave
+        n = (719, -231, 0) instead of (0, 5, 0) at the element ends).
+
+        Parameters
+        ----------
+        s : float or array_like
+            Arclengths in ``[0, length]``.
+        step : int, default -1
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> f = result.evaluate([0.25, 0.75])
+        >>> np.round(f["n"], 8) + 0.0                  # the tip load, carried along the rod
+        array([[0.  , 0.01, 0.  ],
+               [0.  , 0.01, 0.  ]])
         """
         mesh, rod = self.rod.mesh, self.rod
         s = np.atleast_1d(np.asarray(s, dtype=float))
@@ -182,18 +315,68 @@ class Result:
         return eps, loc.Rr[:, None] @ Lam, np.einsum("nkI,nIi->nki", N, r[nodes])
 
     def position(self, s, step=-1):
+        """Positions at arclengths ``s``, ``(n, 3)``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.position([0.0, 1.0]).shape
+        (2, 3)
+        """
         return self.evaluate(s, step)["r"]
 
     def frame(self, s, step=-1):
+        """Rotations (columns ``d1, d2, d3``) at arclengths ``s``, ``(n, 3, 3)``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> R = result.frame(1.0)[0]
+        >>> bool(np.allclose(R.T @ R, np.eye(3)))
+        True
+        """
         return self.evaluate(s, step)["R"]
 
     def sample(self, per_element=8, step=-1):
-        """Fields sampled uniformly along the rod (for output)."""
+        """Fields (as :meth:`evaluate`) at ``per_element`` uniform intervals
+        per element, ends included: ``n_elements * per_element + 1`` points.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.sample(per_element=2)["r"].shape
+        (9, 3)
+        """
         n = self.rod.mesh.n_elements * per_element + 1
         return self.evaluate(np.linspace(0, self.rod.length, n), step)
 
     # output ------------------------------------------------------------------
     def point_data(self, step=-1, per_element=8):
+        """Sampled fields of a step and the point data written to VTU files
+        (arclength, resultants ``n``, ``m``, strains ``v``, ``u``, twist strain,
+        and ``contact_force`` when contact is on).
+
+        Returns
+        -------
+        fields : dict
+            As :meth:`sample`.
+        data : dict of numpy.ndarray
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> f, data = result.point_data()
+        >>> sorted(data)
+        ['arclength', 'm', 'n', 'twist', 'u', 'v']
+        """
         f = self.sample(per_element, step)
         data = dict(arclength=f["s"], n=f["n"], m=f["m"], v=f["v"], u=f["u"],
                     twist=f["u"][:, 2] - f["u0"][:, 2])
@@ -209,13 +392,43 @@ class Result:
     def write_vtu(self, path, step=-1, per_element=8):
         """Write one step as a VTU polyline with frames and resultants; with
         contact, the point data ``contact_force`` holds f_N (per unit length)
-        at the sample nearest to each active contact point."""
+        at the sample nearest to each active contact point.
+
+        Returns
+        -------
+        str
+            ``path``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.write_vtu("cantilever.vtu")
+        'cantilever.vtu'
+        """
         from .export import write_vtu
         f, pdata = self.point_data(step, per_element)
         return write_vtu(path, f["r"], f["R"], pdata)
 
     def write_series(self, directory, basename="rod", per_element=8):
-        """Write every step (one VTU each) plus a time-series file."""
+        """Write every step (one VTU each) plus the time series files
+        ``basename.pvd`` (ParaView) and ``basename.xdmf``, atomically.
+
+        Returns
+        -------
+        list of str
+            The files written.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> files = result.write_series("out", "cantilever")
+        >>> sorted(f.rsplit("/", 1)[-1] for f in files)[:2]
+        ['cantilever.pvd', 'cantilever.xdmf']
+        """
         from .export import write_series
         steps = []
         for k, st in enumerate(self.steps):
@@ -234,25 +447,98 @@ class Result:
         ``link = twist + writhe``: for a rod whose ends are turned by
         ``phi`` it equals ``phi / 2 pi`` (Calugareanu-White).  ``link_gauss``
         is the Gauss linking number of the closed ribbon (an integer).
+        A closed rod (ring) is its own closed curve: ``link = twist +
+        writhe`` with no closure.
+
+        Returns
+        -------
+        skfem_rod.topology.Topology
+
+        Examples
+        --------
+        One turn of twist on a straight rod: all twist, no writhe.
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod = rod.clamp("start").pin("end").prescribe_rotation("end", [2 * np.pi, 0, 0])
+        >>> t = rod.solve(2).topology()
+        >>> round(t.twist, 6), round(abs(t.writhe), 6), round(t.link, 6)
+        (1.0, 0.0, 1.0)
         """
         from dataclasses import replace
         from .topology import topology
         f = self.sample(per_element, step)
+        if getattr(self.rod.mesh, "closed", False):     # a ring: no closure
+            return topology(f["r"][:-1], f["R"][:-1, :, 0], closed=True)
         t = topology(f["r"], f["R"][:, :, 0], t_start=f["R"][0][:, 2],
                      t_end=f["R"][-1][:, 2])
         tw = t.twist - t.closure_twist
         return replace(t, twist=tw, link=tw + t.writhe)
 
+    def dissipated_energy(self):
+        """Cumulative friction work dissipated along the path, one value per
+        step (all zeros without friction; step 0 holds what the settling of
+        preloads dissipated, if any), ``(n_steps,)``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 2)
+        >>> rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2).dissipated_energy()
+        array([0., 0., 0.])
+        """
+        d = [st.contact.dissipation if st.contact is not None and st.contact.friction else 0.0
+             for st in self.steps]
+        return np.cumsum(d)
+
     def contact_points(self, step=-1):
-        """Positions of the active contact (slave) points of a step, (m, 3)."""
+        """Positions of the active contact (slave) points of a step, ``(m, 3)``
+        (empty without contact).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.contact_points().shape
+        (0, 3)
+        """
         c = self.steps[step].contact
         if c is None or c.s.size == 0:
             return np.zeros((0, 3))
         return self.evaluate(c.s, step)["r"]
 
     def render(self, filename, step=-1, radius=None, per_element=8, **kwargs):
-        """Offscreen PNG of the rod as a tube with a stripe along ``d1``;
-        active contact points are marked (unless ``contact_points`` is given)."""
+        """Offscreen PNG of the rod at a step as a tube with a stripe along
+        ``d1``; active contact points are marked (unless ``contact_points`` is
+        given; with friction on they are coloured by state: stick green,
+        slip orange, see :func:`skfem_rod.render.contact_state_colors`).
+
+        Parameters
+        ----------
+        filename : str or os.PathLike
+        step : int, default -1
+        radius : float, optional
+            Tube radius; default the section's radius (else 1 % of the length).
+        per_element : int, default 8
+            Samples of the centreline per element.
+        **kwargs
+            Passed to :func:`skfem_rod.render.render_rod` (``window_size``,
+            ``camera``, ``title``, ``glyphs``, ``contact_colors`` ...).
+
+        Returns
+        -------
+        str
+            ``filename``.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.render("cantilever.png", window_size=(320, 240), title="cantilever")
+        'cantilever.png'
+        """
         from .render import render_rod
         f = self.sample(per_element, step)
         if radius is None:
@@ -261,4 +547,12 @@ class Result:
             pts = self.contact_points(step)
             if len(pts):
                 kwargs["contact_points"] = pts
+                c = self.steps[step].contact
+                if c.friction and "contact_colors" not in kwargs:
+                    # stick / slip colours: a point slips if either law slips
+                    from .render import contact_state_colors
+                    opts = self.rod.contact
+                    laws = [st for g, st in ((opts.gamma_T, c.state_T),
+                                             (opts.gamma_R, c.state_R)) if g > 0]
+                    kwargs["contact_colors"] = contact_state_colors(np.max(laws, axis=0))
         return render_rod(filename, f["r"], f["R"], radius, **kwargs)

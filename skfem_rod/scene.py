@@ -397,10 +397,18 @@ def _contact_keys():
             "n_slave": "slave points per element",
             "tolerance": "Uzawa tolerance (times eps)",
             "max_uzawa": "Uzawa updates per step",
-            "margin": "extra search reach (default eps)"}
+            "margin": "extra search reach (default eps)",
+            "gamma_T": "tangential Coulomb coefficient (0: no friction)",
+            "gamma_R": "rotational Coulomb coefficient, a length (0: none)",
+            "mu_T": "tangential friction compliance (default: penalty)",
+            "mu_R": "rotational friction compliance (default: penalty / eps^2)",
+            "friction_tolerance": "Uzawa tolerance of the friction multipliers "
+                                  "(times gamma f_N)"}
     checks = {"radius": POSITIVE, "penalty": POSITIVE, "exclusion": POSITIVE,
               "n_slave": Integer(1, 20), "tolerance": POSITIVE,
-              "max_uzawa": Integer(1, 10_000), "margin": Number(0, lo_open=False)}
+              "max_uzawa": Integer(1, 10_000), "margin": Number(0, lo_open=False),
+              "gamma_T": Number(0, lo_open=False), "gamma_R": Number(0, lo_open=False),
+              "mu_T": POSITIVE, "mu_R": POSITIVE, "friction_tolerance": POSITIVE}
     keys = {"enabled": Key(Boolean(), True, "switch self-contact on")}
     keys.update({n: Key(checks[n], d[n], docs[n]) for n in d})
     return keys
@@ -417,10 +425,16 @@ def _solver_keys():
         "line_search": Boolean(), "max_backtracks": Integer(1, 100),
         "max_spin_update": POSITIVE, "max_growth": POSITIVE, "min_step": POSITIVE,
         "max_rotation_step": POSITIVE, "grow": Number(1, lo_open=False),
+        "snap": Choice("cut", "relax"), "stability": Boolean(), "relax_tol": POSITIVE,
+        "relax_dt": POSITIVE, "max_flow_steps": Integer(1, 10_000_000),
     }
     keys = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
             "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times")}
     keys.update({n: Key(checks[n], d[n]) for n in d})
+    keys["method"] = Key(Choice("newton", "arclength"), "newton",
+                         "load stepping, or pseudo-arclength continuation (through limit "
+                         "points; path must be [0, lam_end], n_steps sets the first step)")
+    keys["max_steps"] = Key(Integer(1, 1_000_000), 200, "arclength: most continuation steps")
     return keys
 
 
@@ -609,6 +623,10 @@ def _validate(data):
             c.keys(name, data[name], list(spec), f"[{name}]")
             out[name] = c.fill(name, data[name], spec)
     out.setdefault("solver", {k: key.default for k, key in SOLVER.items()})
+    sv = out["solver"]
+    if sv.get("method") == "arclength" and len(sv.get("path") or []) != 2:
+        c.bad(f"solver.path: with method = \"arclength\" the path must be [0, lam_end] "
+              f"(the continuation turns back by itself), got {sv.get('path')!r}")
 
     if c.problems:
         raise SceneError(c.problems)
@@ -740,7 +758,8 @@ def _build(d):
 
 def _solver_options(d):
     s = d["solver"]
-    return {k: v for k, v in s.items() if k not in ("n_steps", "path")}
+    drop = ("n_steps", "path") + (("max_steps",) if s.get("method") != "arclength" else ())
+    return {k: v for k, v in s.items() if k not in drop}
 
 
 # ---------------------------------------------------------------------------

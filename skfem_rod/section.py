@@ -60,8 +60,32 @@ class Section:
     @classmethod
     def circle(cls, E, nu, radius, shear_coefficient=None):
         """Solid circular section of ``radius`` from Young's modulus ``E`` and
-        Poisson's ratio ``nu`` (``-1 < nu < 0.5``).  The shear coefficient
-        defaults to Cowper's ``6 (1 + nu) / (7 + 6 nu)``."""
+        Poisson's ratio ``nu`` (``-1 < nu < 0.5``).
+
+        ``EA = E pi r^2``, ``EI1 = EI2 = E pi r^4 / 4``, ``GJ = G pi r^4 / 2``,
+        ``GA1 = GA2 = k G A`` with ``G = E / 2(1 + nu)``.
+
+        Parameters
+        ----------
+        E : float
+            Young's modulus, > 0.
+        nu : float
+            Poisson's ratio, in ``(-1, 0.5)``.
+        radius : float
+            Radius, > 0; also the contact radius and the render radius.
+        shear_coefficient : float, optional
+            ``k``; default Cowper's ``6 (1 + nu) / (7 + 6 nu)``.
+
+        Returns
+        -------
+        Section
+
+        Examples
+        --------
+        >>> sec = Section.circle(E=2e11, nu=0.3, radius=1e-3)      # a 2 mm steel wire
+        >>> round(sec.EI1, 6), round(sec.GA1 / (sec.EA / (2 * 1.3)), 4)
+        (0.15708, 0.8864)
+        """
         E = positive("E", E)
         radius = positive("radius", radius)
         try:
@@ -83,7 +107,27 @@ class Section:
 
     @classmethod
     def from_matrix(cls, C, radius=None):
-        """Section with a full symmetric positive-definite 6 x 6 stiffness."""
+        """Section with a full symmetric positive-definite 6 x 6 stiffness
+        ``C`` in the strain order ``(v1, v2, v3, u1, u2, u3)`` (couplings,
+        e.g. of stretch and twist, allowed).
+
+        Parameters
+        ----------
+        C : array_like (6, 6)
+        radius : float, optional
+
+        Returns
+        -------
+        Section
+
+        Examples
+        --------
+        >>> C = np.diag([10.0, 10.0, 20.0, 1.0, 1.0, 0.8])
+        >>> C[2, 5] = C[5, 2] = 0.5                    # stretch-twist coupling
+        >>> sec = Section.from_matrix(C)
+        >>> sec.EA, sec.GJ, float(sec.C[2, 5])
+        (20.0, 0.8, 0.5)
+        """
         C = np.asarray(C, dtype=float)
         if C.shape != (6, 6):
             raise ValueError(f"matrix must be 6 x 6, got shape {C.shape}")
@@ -92,7 +136,13 @@ class Section:
 
     @property
     def C(self):
-        """The 6 x 6 stiffness in strain order ``(v1, v2, v3, u1, u2, u3)``."""
+        """The 6 x 6 stiffness in strain order ``(v1, v2, v3, u1, u2, u3)``.
+
+        Examples
+        --------
+        >>> Section(EA=3.0, GA1=1.0, GA2=2.0, EI1=4.0, EI2=5.0, GJ=6.0).C.diagonal()
+        array([1., 2., 3., 4., 5., 6.])
+        """
         if self.matrix is not None:
             return self.matrix
         return np.diag([self.GA1, self.GA2, self.EA, self.EI1, self.EI2, self.GJ])

@@ -402,3 +402,100 @@ class EquilibriumPath:
             r, R, cur = r_n, R_n, nxt
         self.states[lam] = (r, R)
         return r, R
+
+
+def _polylines(xs, y, stable, inserts):
+    """Split the path into solid (stable) and dashed (unstable) polylines.
+
+    ``inserts``: ``(k, f, x, y)`` points between steps ``k`` and ``k + 1``
+    (fraction ``f``), the located critical points, where the style changes.
+    A segment is stable when none of its step ends is unstable.
+    """
+    pts = [(float(k), xs[k], y[k], bool(stable[k])) for k in range(len(xs))]
+    pts += [(k + f, xc, yc, None) for k, f, xc, yc in inserts]
+    pts.sort(key=lambda p: p[0])
+    lines = []
+    for a, b in zip(pts[:-1], pts[1:]):
+        st = all(p[3] is not False for p in (a, b))
+        if lines and lines[-1][2] == st:
+            lines[-1][0].append(b[1])
+            lines[-1][1].append(b[2])
+        else:
+            lines.append(([a[1], b[1]], [a[2], b[2]], st))
+    return lines
+
+
+def plot_path(result, quantity=None, ax=None, filename=None, xlabel="load factor",
+              ylabel=None, x=None, marker_critical=True, color="C0", **line_kw):
+    """Equilibrium path with its stability: solid where stable (Morse index
+    0), dashed where unstable; limit points marked with circles and
+    bifurcations with squares.
+
+    Parameters
+    ----------
+    result : :class:`skfem_rod.continuation.PathResult` (``stability=True``;
+        without it the whole path is drawn solid and gray).
+    quantity : per-step array, or callable ``(result, k) -> float``; default
+        the largest nodal displacement.
+    x : per-step array for the horizontal axis (default the load factor).
+    ax : matplotlib axes (default: a new figure).
+    filename : write the figure (PNG, atomically) when given.
+
+    Returns
+    -------
+    the matplotlib axes.
+    """
+    import matplotlib
+    if ax is None:
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+        _, ax = plt.subplots(figsize=(6, 4.2))
+    n = len(result.steps)
+    if quantity is None:
+        y = np.array([np.abs(st.r - result.rod.r0).max() for st in result.steps])
+        ylabel = ylabel or "largest nodal displacement"
+    elif callable(quantity):
+        y = np.array([float(quantity(result, k)) for k in range(n)])
+    else:
+        y = np.asarray(quantity, float)
+    xs = result.load_factors if x is None else np.asarray(x, float)
+    if y.shape != (n,) or xs.shape != (n,):
+        raise ValueError(f"quantity and x must have one value per step ({n}), got shapes "
+                         f"{y.shape} and {xs.shape}")
+    index = getattr(result, "index", np.full(n, -1))
+    crit = list(getattr(result, "critical", []))
+    inserts, marks = [], []
+    s_path = getattr(result, "arclengths", None)
+    for c in crit:
+        k = c.step
+        ds = s_path[k + 1] - s_path[k]
+        f = min(max((c.arclength - s_path[k]) / ds, 0.0), 1.0) if ds > 0 else 0.0
+        xc = c.load_factor if x is None else xs[k] + f * (xs[k + 1] - xs[k])
+        yc = y[k] + f * (y[k + 1] - y[k])          # linear in arclength
+        inserts.append((k, f, xc, yc))
+        marks.append((xc, yc, c.kind))
+    if np.all(index < 0):
+        ax.plot(xs, y, "-", color="0.4", **line_kw)
+    else:
+        labelled = set()
+        for px, py, st in _polylines(xs, y, index == 0, inserts):
+            lab = "stable" if st else "unstable"
+            ax.plot(px, py, "-" if st else "--", color=color,
+                    label=None if lab in labelled else lab, **line_kw)
+            labelled.add(lab)
+    if marker_critical:
+        labelled = set()
+        for xc, yc, kind in marks:
+            ax.plot([xc], [yc], "o" if kind == "limit" else "s", color="C3", ms=5,
+                    label=None if kind in labelled else f"{kind} point")
+            labelled.add(kind)
+    ax.set_xlabel(xlabel)
+    if ylabel:
+        ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    if filename is not None:
+        from .export import _atomic_path
+        with _atomic_path(filename) as tmp:
+            ax.figure.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
+    return ax

@@ -1,5 +1,6 @@
-"""Self-contact: search (:mod:`.search`), normal law (:mod:`.law`) and the
-nonlocal assembler (:mod:`.assembly`).  :class:`ContactOptions` holds the
+"""Self-contact: search (:mod:`.search`), normal law (:mod:`.law`), the
+nonlocal assembler (:mod:`.assembly`), and Coulomb self-friction: the law
+(:mod:`.friction`) and its assembler (:mod:`.friction_assembly`).  :class:`ContactOptions` holds the
 parameters; ``Rod.enable_contact`` switches contact on (off by default, and
 then no contact code runs)."""
 from dataclasses import dataclass
@@ -26,6 +27,18 @@ class ContactOptions:
         ``tolerance * eps`` (default 1e-3).
     max_uzawa : largest number of Uzawa updates per load step.
     margin : extra search reach beyond ``2 eps`` (default ``eps``).
+    gamma_T : tangential Coulomb coefficient (dimensionless, eq. 3.10a-b);
+        default 0.
+    gamma_R : rotational Coulomb coefficient, a length (eq. 3.10c-d):
+        ``|f_R| <= gamma_R f_N``; default 0.  With ``gamma_T = gamma_R = 0``
+        (the default) no friction code runs.
+    mu_T : tangential compliance (slip increment per unit friction force
+        per unit length, eq. 4.2b); default ``penalty``.
+    mu_R : rotational compliance (rotation increment per unit couple per
+        unit length, eq. 4.2c); default ``penalty / eps**2``.
+    friction_tolerance : Uzawa also iterates until every friction
+        multiplier moved by less than ``friction_tolerance * gamma f_N``
+        (largest over the points); default 1e-3.
     """
     radius: float
     penalty: float
@@ -34,6 +47,16 @@ class ContactOptions:
     tolerance: float = 1e-3
     max_uzawa: int = 30
     margin: float = None
+    gamma_T: float = 0.0
+    gamma_R: float = 0.0
+    mu_T: float = None
+    mu_R: float = None
+    friction_tolerance: float = 1e-3
+
+    @property
+    def friction(self):
+        """True when a friction coefficient is positive."""
+        return self.gamma_T > 0 or self.gamma_R > 0
 
     def __post_init__(self):
         for name in ("radius", "penalty", "exclusion", "tolerance"):
@@ -49,3 +72,17 @@ class ContactOptions:
             self.margin = self.radius
         if not (np.isfinite(self.margin) and self.margin >= 0):
             raise ValueError(f"contact margin must be a finite number >= 0, got {self.margin!r}")
+        for name in ("gamma_T", "gamma_R"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
+                                           and np.isfinite(v) and v >= 0):
+                raise ValueError(f"contact {name} must be a finite number >= 0, got {v!r}")
+        if self.mu_T is None:
+            self.mu_T = self.penalty
+        if self.mu_R is None:
+            self.mu_R = self.penalty / self.radius ** 2
+        for name in ("mu_T", "mu_R", "friction_tolerance"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
+                                           and np.isfinite(v) and v > 0):
+                raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")

@@ -22,7 +22,10 @@ a symmetric 24 x 24 block over the position dofs of the two elements (the
 paper's Sigma_1^T Gamma_N Sigma_1 of sec. 7.1).  ``Omega`` is guarded: where
 the projection sits on an element end, or ``|y'|^2 - (x - y) . y''`` is not
 safely positive (non-unique projection), the ``Delta xi`` term is dropped.
-All pairs are evaluated at once; the blocks go to one COO -> CSC scatter.
+All pairs are evaluated at once; the blocks of the pairs of one element
+pair are summed by one batched product and the node blocks written straight
+into CSC arrays (:func:`_tangent`; the pattern is cached while the element
+pairs in contact do not change).
 """
 import numpy as np
 import scipy.sparse as sp
@@ -57,9 +60,7 @@ def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     K = None
     if tangent:
         keep = np.flatnonzero(act)                          # stiffness of active pairs
-        m = keep.size
-        P, Q, Nv, b, w, fa, dfa, dofs = (P[keep], Q[keep], Nv[keep], b[keep], w[keep],
-                                         fN[keep], dfN[keep], dofs[keep])
+        P, Q, Nv, w, fa, dfa = P[keep], Q[keep], Nv[keep], w[keep], fN[keep], dfN[keep]
         dNm, d2Nm = dNm[:, keep], d2Nm[:, keep]
         r_m = r[mesh.nodes[pairs.m_elem[keep]]]             # (m, 4, 3)
         y1 = (dNm.T[:, None, :] @ r_m)[:, 0]
@@ -69,16 +70,99 @@ def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True):
         den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
         use = pairs.interior[keep] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
         Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
-        a = (P[:, :, None] * (y1 / l[:, None])[:, None, :]
-             + Q[:, :, None] * Nv[:, None, :]).reshape(m, 24)
-        bb = b.reshape(m, 24)
-        proj = np.eye(3) - Nv[:, :, None] * Nv[:, None, :]     # (m, 3, 3)
-        PP = P[:, :, None] * P[:, None, :]                      # (m, 8, 8)
-        ddl = (PP[:, :, None, :, None] * proj[:, None, :, None, :]).reshape(m, 24, 24) / l[:, None, None]
-        ddl -= (Om * l)[:, None, None] * a[:, :, None] * a[:, None, :]
-        Ke = w[:, None, None] * (dfa[:, None, None] * bb[:, :, None] * bb[:, None, :]
-                                 - fa[:, None, None] * ddl)
-        rows = np.repeat(dofs, 24, axis=1).ravel()
-        cols = np.tile(dofs, (1, 24)).ravel()
-        K = sp.csc_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
+        K = _tangent(mesh, pairs.s_elem[keep], pairs.m_elem[keep], P, Q, Nv, y1 / l[:, None],
+                     w * dfa, w * fa / l, w * fa * Om * l)
     return energy, force, K, fN
+
+
+def _tangent(mesh, s_elem, m_elem, P, Q, N, u, c_nn, c_proj, c_om):
+    r"""The pairs' 24 x 24 blocks, summed into a CSC matrix.
+
+    With ``a(delta) = P (x) u + Q (x) N`` (``u = y' / l``), the block is
+    ``w [f' b b^T - f ddl]`` = ``PP^T (x) G1 + PQ^T (x) G2 + QP^T (x) G2^T
+    + QQ^T (x) G3`` with the 3 x 3 matrices
+    ``G1 = c_nn NN^T - c_proj (I - NN^T) + c_om uu^T``, ``G2 = c_om u N^T``,
+    ``G3 = c_om NN^T``.  The pairs of one element pair {v, e} (at most
+    ``2 n_slave``: the slaves of v on e and those of e on v) share their 8
+    nodes, so their blocks are summed by one batched product per element
+    pair, (64 node pairs x 4 k) @ (4 k x 9).  The node blocks are then merged
+    by global (column node, row node) and written straight into CSC arrays
+    (no COO sort of ``m * 576`` entries)."""
+    n = mesh.n_dofs
+    m = P.shape[0]
+    if m == 0:
+        return sp.csc_matrix((n, n))
+    NN = N[:, :, None] * N[:, None, :]
+    G = np.empty((m, 4, 3, 3))
+    G[:, 0] = (c_nn + c_proj)[:, None, None] * NN + c_om[:, None, None] * (u[:, :, None] * u[:, None, :])
+    G[:, 0, [0, 1, 2], [0, 1, 2]] -= c_proj[:, None]
+    G[:, 1] = c_om[:, None, None] * (u[:, :, None] * N[:, None, :])
+    G[:, 2] = np.swapaxes(G[:, 1], 1, 2)
+    G[:, 3] = c_om[:, None, None] * NN
+    # element pair {v, e}, v <= e, nodes ordered (v, e): swap the halves of
+    # the operators of pairs whose slave element is the larger
+    swap = s_elem > m_elem
+    lo, hi = np.minimum(s_elem, m_elem), np.maximum(s_elem, m_elem)
+    ne = mesh.nodes.shape[0]
+    key = lo * ne + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    new = np.r_[True, ks[1:] != ks[:-1]]
+    start = np.flatnonzero(new)
+    group = np.cumsum(new) - 1                              # group of sorted pair
+    slot = np.arange(m) - start[group]
+    ng, K = start.size, int(slot.max()) + 1
+    # operators X = (P, Q) padded per group (ng, K, 2, 8), G as (ng, K, 2, 2, 9)
+    X = np.zeros((ng, K, 2, 8))
+    so = swap[order][:, None]
+    X[group, slot, 0] = np.where(so, np.roll(P[order], 4, axis=1), P[order])
+    X[group, slot, 1] = np.where(so, np.roll(Q[order], 4, axis=1), Q[order])
+    Gp = np.zeros((ng, K, 2, 2, 9))
+    Gp[group, slot] = G[order].reshape(m, 2, 2, 9)
+    # block (I, J) = sum_{k, alpha, beta} X_{k alpha I} X_{k beta J} G_{k alpha beta}
+    Y = np.einsum("gkabx,gkbj->gkaxj", Gp, X).reshape(ng, 2 * K, 72)
+    blocks = X.reshape(ng, 2 * K, 8).transpose(0, 2, 1) @ Y        # (ng, I, 9, J)
+    ge = ks[start]
+    nnz, posraw, indices, indptr = _pattern(mesh, ge, ne)
+    data = np.bincount(posraw, weights=blocks.ravel(), minlength=nnz)
+    return sp.csc_matrix((data, indices, indptr), shape=(n, n))
+
+
+_PATTERN_CACHE = {}
+
+
+def _pattern(mesh, ge, ne):
+    """CSC structure of the contact stiffness of element pairs ``ge``
+    (``lo * ne + hi``) and the data position of every (pair, 3 x 3
+    component, node block) value.  The last pattern is cached (the
+    element pairs in contact seldom change between Newton iterations)."""
+    c = _PATTERN_CACHE
+    if (c.get("nodes") is mesh.nodes and c["ge"].shape == ge.shape
+            and np.array_equal(c["ge"], ge)):
+        return c["out"]
+    n, nn = mesh.n_dofs, mesh.n_nodes
+    ng = ge.size
+    nodes = np.concatenate([mesh.nodes[ge // ne], mesh.nodes[ge % ne]], axis=1)   # (ng, 8)
+    # global node-block keys, column-major: (column node, row node)
+    bkey = (nodes[:, None, :] * nn + nodes[:, :, None]).ravel()         # (ng * 64,)
+    ukey, inv = np.unique(bkey, return_inverse=True)
+    bcol, brow = ukey // nn, ukey % nn
+    # CSC: column 6 J + c holds rows 6 I + a of its blocks (I ascending)
+    per_node = np.bincount(bcol, minlength=nn)
+    counts = np.zeros((nn, 6), dtype=np.int64)
+    counts[:, :3] = 3 * per_node[:, None]
+    indptr = np.r_[0, np.cumsum(counts.ravel())]
+    first_block = np.r_[0, np.cumsum(per_node)][:-1]
+    base = indptr[6 * bcol] + 3 * (np.arange(ukey.size) - first_block[bcol])
+    stride = 3 * per_node[bcol]
+    nnz = int(indptr[-1])
+    itype = np.int32 if nnz < 2**31 and n < 2**31 else np.int64
+    a, cc = np.divmod(np.arange(9), 3)                       # component a * 3 + c
+    b_i = inv.reshape(ng, 8, 1, 8)                          # value layout (g, I, a c, J)
+    posraw = (base[b_i] + a[:, None] + cc[:, None] * stride[b_i]).ravel()
+    indices = np.empty(nnz, dtype=itype)
+    indices[posraw] = np.broadcast_to(6 * brow[b_i] + a[:, None], (ng, 8, 9, 8)).ravel()
+    out = (nnz, posraw, indices, indptr.astype(itype))
+    c.clear()
+    c.update(nodes=mesh.nodes, ge=ge.copy(), out=out)
+    return out

@@ -1,0 +1,547 @@
+r"""Path following: pseudo-arclength continuation in the load factor, with
+stability along the path, critical points located by bisection and branch
+switching.
+
+The unknowns are the configuration ``y`` (positions ``r`` and rotations
+``R``, updated multiplicatively ``R <- exp(dw) R``) and the load factor
+``lam``.  Loads scale with ``lam`` (except preloads, ``constant=True``) and
+so do the prescribed motions of the supports: a constrained dof is not an
+unknown but the function ``lam * p`` of the load factor (``p`` the
+prescribed displacement / rotation vector), so a change ``dlam`` moves it by
+``dlam * p``.  On the free dofs, with ``q = d f_ext / d lam`` (exact: the
+loads are affine in ``lam`` at fixed rotations),
+
+    K_ff dy_f + (K_fc p_c - q_f) dlam = -G_f(y, lam).
+
+The extra equation is the pseudo-arclength constraint (Keller): with the
+unit tangent ``t = (t_y, t_lam)`` at the last converged point and the
+increments ``(Dy, Dlam)`` accumulated since then,
+
+    <t_y, Dy>_D + psi^2 t_lam Dlam = ds,
+
+in the scaled inner product ``<u, v>_D = sum u_pos . v_pos / L^2 + u_spin .
+v_spin`` (positions in rod lengths, spins in radians) and ``psi`` the weight
+of the load factor (default: the size of the initial tangent ``|dy/dlam|_D``,
+so load and displacement count equally at the start).  Eliminating ``dy``
+with two back substitutions of one factorization of ``K_ff`` gives ``dlam``
+(the bordered system), so limit points in load (``t_lam = 0``) and in
+displacement pass without special treatment; the predictor is the tangent,
+oriented along the previous one, and ``ds`` adapts to reach
+``target_iterations`` Newton iterations per step.
+
+Stability: at each converged point, the lowest eigenvalues of the
+symmetrized tangent on the free dofs (:func:`skfem_rod.stability.lowest_eigenvalues`)
+and the Morse index (number of negative ones).  Where the index changes
+between two points, the critical point is located by bisection in
+arclength (each trial a corrector solve from the earlier point) on the sign
+of the eigenvalue that crosses, refined by regula falsi; it is a *limit
+point* when ``t_lam`` changes sign there and a *bifurcation* otherwise.
+:func:`switch_branch` starts a new path from a bifurcation along its
+critical mode.  The eigenvalues decide stability only for conservative
+loads (dead forces; see :mod:`skfem_rod.stability`), and not with contact
+(the multipliers of the state are not part of the tangent's potential):
+``stability=True`` with contact raises.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .kinematics import ElementRotationError
+from .loads import point_loads
+from .results import Result
+from .solver import _System, _prescribed_increment, make_options, newton
+from .validation import positive
+
+
+@dataclass
+class CriticalPoint:
+    """A limit or bifurcation point located on a path.
+
+    Attributes
+    ----------
+    kind : ``"limit"`` (the load factor turns back) or ``"bifurcation"``.
+    load_factor : load factor at the point.
+    step : the point lies between ``steps[step]`` and ``steps[step + 1]``.
+    arclength : path arclength at the point.
+    r, R : the configuration at the (stable side of the) final bracket.
+    mode_positions, mode_spins : (n_nodes, 3) critical mode (eigenvector of
+        the eigenvalue that crosses zero), zero at constrained dofs.
+    eigenvalue : that eigenvalue at ``r, R`` (near zero).
+    bracket : ``(s_lo, s_hi)`` arclength bracket of the final bisection.
+    tangent : (n_dofs + 1,) path tangent ``(t_y, t_lam)`` at the bracket start.
+    """
+    kind: str
+    load_factor: float
+    step: int
+    arclength: float
+    r: np.ndarray
+    R: np.ndarray
+    mode_positions: np.ndarray
+    mode_spins: np.ndarray
+    eigenvalue: float
+    bracket: tuple
+    tangent: np.ndarray = field(repr=False, default=None)
+    load_scale: float = None
+
+
+class PathResult(Result):
+    """A :class:`~skfem_rod.results.Result` of :func:`follow`, with per step
+
+    * ``arclengths``: path arclength (scaled norm, see the module doc);
+    * ``eigenvalues``: ``(n_steps, k)`` lowest eigenvalues of the
+      symmetrized tangent (``stability=True``), else empty;
+    * ``index``: the Morse index (negative eigenvalues; 0 = stable), -1
+      when not computed;
+    * ``stable``: ``index == 0``;
+    * ``critical``: the located :class:`CriticalPoint` s.
+
+    :meth:`plot` draws the path, solid where stable, dashed where not.
+    """
+
+    def __init__(self, rod):
+        super().__init__(rod)
+        self._s, self._eig, self._index, self._tlam = [], [], [], []
+        self.critical = []
+        self.tangents = []
+        self.load_scale = None
+
+    @property
+    def arclengths(self):
+        return np.array(self._s)
+
+    @property
+    def eigenvalues(self):
+        if not self._eig or self._eig[0] is None:
+            return np.zeros((len(self.steps), 0))
+        return np.array(self._eig)
+
+    @property
+    def index(self):
+        return np.array(self._index, dtype=int)
+
+    @property
+    def stable(self):
+        return self.index == 0
+
+    def plot(self, quantity=None, ax=None, filename=None, xlabel="load factor",
+             ylabel=None, marker_critical=True, **line_kw):
+        """Plot ``quantity`` (per-step array or callable ``(result, k)``;
+        default: the largest nodal displacement) against the load factor;
+        see :func:`skfem_rod.stability.plot_path`."""
+        from .stability import plot_path
+        return plot_path(self, quantity=quantity, ax=ax, filename=filename, xlabel=xlabel,
+                         ylabel=ylabel, marker_critical=marker_critical, **line_kw)
+
+
+# ----------------------------------------------------------------------------
+class _Follower:
+    """Bordered Newton corrector and the path state of :func:`follow`."""
+
+    def __init__(self, rod, opts, load_scale):
+        self.rod = rod
+        self.opts = opts
+        self.system = _System(rod)
+        self.fixed = self.system.fixed
+        self.free = self.system.free
+        n = rod.mesh.n_dofs
+        # prescribed motion per unit load factor, on the constrained dofs only
+        self.pfix = _prescribed_increment(rod, 1.0)          # in the supports' bases
+        self.pfix[self.free] = 0.0
+        d = np.ones((rod.mesh.n_nodes, 6))
+        d[:, :3] = 1.0 / rod.length
+        self.D2 = (d ** 2).ravel()                # weights of the scaled inner product
+        self.psi2 = None if load_scale is None else float(load_scale) ** 2
+
+    # -- helpers ---------------------------------------------------------
+    def q(self, R):
+        """``d f_ext / d lam`` at rotations ``R`` (point loads affine in lam)."""
+        mesh, rod = self.rod.mesh, self.rod
+        f1 = point_loads(mesh, rod.point_loads, R, rod.R0, 1.0)[0]
+        f0 = point_loads(mesh, rod.point_loads, R, rod.R0, 0.0)[0]
+        q = self.system.f_dist + f1 - f0
+        return q if self.system.T is None else self.system.T.T @ q
+
+    def dot(self, u, v, ul, vl):
+        return float(np.dot(self.D2 * u, v) + self.psi2 * ul * vl)
+
+    def tangent(self, r, R, lam, K=None, orient=None):
+        """Unit tangent ``(t_y, t_lam)`` at a converged point, oriented so
+        that ``<t, orient> > 0`` (default: increasing load factor)."""
+        if K is None:
+            _, K, _, _ = self.system.evaluate(r, R, lam)
+        solve = self.system.factor(K)
+        v = solve(self.q(R) - K @ self.pfix) + self.pfix       # dy / dlam
+        if self.psi2 is None:
+            nv = float(np.sqrt(np.dot(self.D2 * v, v)))
+            self.psi2 = nv ** 2 if nv > 0 else 1.0
+        nrm = np.sqrt(self.dot(v, v, 1.0, 1.0))
+        ty, tl = v / nrm, 1.0 / nrm
+        if orient is not None and self.dot(ty, orient[0], tl, orient[1]) < 0:
+            ty, tl = -ty, -tl
+        return ty, tl
+
+    # -- corrector -------------------------------------------------------
+    def correct(self, r, R, lam, w, wl, target, pred_y, pred_l):
+        """Newton on ``G(y, lam) = 0`` and ``<w, Dy> + wl Dlam = target``
+        (``w`` already weighted), from the base point ``(r, R, lam)`` moved
+        by the predictor ``(pred_y, pred_l)``.  Returns ``(ok, r, R, lam,
+        info)``."""
+        opts, system = self.opts, self.system
+        free, fixed = self.free, self.fixed
+        length = self.rod.length
+        Dy, Dl = pred_y.copy(), float(pred_l)
+        history = []
+        try:
+            r, R = system.update(r, R, pred_y, 1.0)
+            lam = lam + pred_l
+            res, K, f_ext, iw = system.evaluate(r, R, lam)
+        except ElementRotationError as err:
+            return False, r, R, lam, dict(reason=str(err), iterations=0, history=history)
+        last = np.inf
+        for it in range(opts.max_iterations + 1):
+            rn = float(np.linalg.norm(res[free]))
+            history.append(rn)
+            if not np.isfinite(rn):
+                return False, r, R, lam, dict(reason="non-finite residual", iterations=it,
+                                              history=history)
+            scale = max(np.linalg.norm(f_ext), np.linalg.norm(res[fixed]), 1e-300)
+            cres = abs(float(np.dot(w, Dy) + wl * Dl - target))
+            if (rn <= opts.rtol * scale or last <= opts.increment_tol) and \
+                    cres <= 1e-8 * max(abs(target), 1e-300):
+                return True, r, R, lam, dict(res=res, K=K, iw=iw, f_ext=f_ext, iterations=it,
+                                             history=history, reason="")
+            if it == opts.max_iterations:
+                break
+            try:
+                solve = system.factor(K)
+            except RuntimeError as err:
+                return False, r, R, lam, dict(reason=f"singular tangent ({err})",
+                                              iterations=it, history=history)
+            xg = solve(-res)
+            xq = solve(self.q(R) - K @ self.pfix) + self.pfix
+            den = float(np.dot(w, xq) + wl)
+            if not np.isfinite(den) or den == 0.0:
+                return False, r, R, lam, dict(reason="singular bordered system",
+                                              iterations=it, history=history)
+            dl = (target - np.dot(w, Dy) - wl * Dl - np.dot(w, xg)) / den
+            dy = xg + dl * xq
+            if not np.all(np.isfinite(dy)):
+                return False, r, R, lam, dict(reason="non-finite update", iterations=it,
+                                              history=history)
+            alpha = 1.0
+            if opts.line_search:
+                spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
+                alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+            try:
+                r_t, R_t = system.update(r, R, dy, alpha)
+                out = system.evaluate(r_t, R_t, lam + alpha * dl)
+            except ElementRotationError as err:
+                return False, r, R, lam, dict(reason=str(err), iterations=it + 1,
+                                              history=history)
+            r, R, lam = r_t, R_t, lam + alpha * dl
+            res, K, f_ext, iw = out
+            Dy += alpha * dy
+            Dl += alpha * dl
+            upd = (alpha * dy).reshape(-1, 6)
+            last = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max()))
+        return False, r, R, lam, dict(reason=f"no convergence in {opts.max_iterations} "
+                                             f"iterations (residual {history[-1]:.3e})",
+                                      iterations=opts.max_iterations, history=history)
+
+    def step(self, r, R, lam, w, wl, target, pred_y, pred_l):
+        """:meth:`correct`, wrapped in Uzawa updates when contact is on."""
+        c = self.system.contact
+        if c is None:
+            return self.correct(r, R, lam, w, wl, target, pred_y, pred_l)
+        from .contact.law import gap, uzawa_update
+        saved = self.system.multipliers.copy()
+        r0, R0, lam0 = r, R, lam
+        total, uzawa = 0, 0
+        while True:
+            ok, r1, R1, lam1, info = self.correct(r0, R0, lam0, w, wl, target, pred_y, pred_l)
+            total += info["iterations"]
+            if not ok:
+                self.system.multipliers = saved
+                return ok, r1, R1, lam1, info
+            pairs, fN, _ = info["iw"].contact
+            d = gap(pairs.distance, c.radius)
+            pen = float(d.max(initial=0.0))
+            if pen <= c.tolerance * c.radius or uzawa == c.max_uzawa:
+                info.update(uzawa=uzawa, newton_total=total, penetration=pen,
+                            uzawa_converged=pen <= c.tolerance * c.radius)
+                return True, r1, R1, lam1, info
+            new = np.zeros_like(self.system.multipliers)
+            new[pairs.slave] = uzawa_update(d, self.system.multipliers[pairs.slave], c.penalty)
+            self.system.multipliers = new
+            uzawa += 1
+            # re-solve from the base with the converged increment as predictor
+            pred_y = _increment(r0, R0, r1, R1)
+            if self.system.T is not None:              # to the supports' bases
+                pred_y = self.system.T.T @ pred_y
+            pred_l = lam1 - lam0
+
+    def modes(self, r, R, lam, k):
+        from .stability import _modes
+        return _modes(self.system, r, R, lam, k, None)
+
+
+def _increment(r0, R0, r1, R1):
+    """Increment ``dy`` with ``r1 = r0 + dr``, ``R1 = exp(dw) R0``."""
+    from .rotations import logm
+    dw = logm(R1 @ np.swapaxes(R0, 1, 2))
+    return np.concatenate([r1 - r0, dw], axis=1).ravel()
+
+
+def _check(name, value, lo=None, integer=False):
+    if integer:
+        if isinstance(value, bool) or not (isinstance(value, (int, np.integer)) and value >= lo):
+            raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+        return int(value)
+    return positive(name, value)
+
+
+def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iterations=4, ds_max=None,
+           ds_min=None, load_scale=None, stability=False, n_eigen=3, locate=True,
+           locate_tol=1e-6, start=None, stop=None, callback=None, **options):
+    r"""Follow the equilibrium path of ``rod`` in the load factor by
+    pseudo-arclength continuation (module doc).
+
+    Parameters
+    ----------
+    rod : Rod
+    lam_stop : float
+        The path ends where it reaches this load factor (the last point is
+        placed on it exactly), or after ``max_steps``; ``None``: no load
+        limit.
+    ds : float, optional
+        Initial arclength step; default: the step of a load increment of
+        ``load_step`` along the initial tangent.
+    load_step : float, the initial load increment when ``ds`` is not given.
+    max_steps : converged steps before stopping.
+    target_iterations : Newton iterations per step aimed at by the step
+        control ``ds <- ds * clip(sqrt(target / iterations), 0.5, 2)``;
+        a failed step is halved.
+    ds_max, ds_min : bounds of ``ds`` (default ``20 ds``, ``1e-6 ds``).
+    load_scale : the weight ``psi`` of the load factor in the arclength
+        (default: the size of the initial tangent, see module doc).
+    stability : compute the ``n_eigen`` lowest eigenvalues of the
+        symmetrized tangent and the Morse index at every point.
+    locate : with ``stability``, locate each change of the index by
+        bisection (:class:`CriticalPoint` in ``result.critical``) to a
+        relative arclength bracket of ``locate_tol``.
+    start : ``(r, R, lam, t_y, t_lam)`` to start from a converged state and
+        a tangent (see :func:`switch_branch`); default: the reference
+        state at load factor 0 and its tangent toward increasing load.
+    stop : callable ``(result) -> bool``, ends the path when true.
+    callback : callable ``(result, k)`` after each converged point.
+    **options : :class:`skfem_rod.solver.SolverOptions`.
+
+    Returns
+    -------
+    PathResult
+    """
+    max_steps = _check("max_steps", max_steps, 1, integer=True)
+    target_iterations = _check("target_iterations", target_iterations, 1, integer=True)
+    n_eigen = _check("n_eigen", n_eigen, 1, integer=True)
+    if lam_stop is not None and not np.isfinite(lam_stop):
+        raise ValueError(f"lam_stop must be a finite number or None, got {lam_stop!r}")
+    if not isinstance(stability, bool):
+        raise ValueError(f"stability must be True or False, got {stability!r}")
+    if stability and rod.contact is not None:
+        raise NotImplementedError(
+            "stability along a path with self-contact is not supported: the eigenvalues "
+            "of the tangent with the augmented-Lagrangian contact terms at fixed "
+            "multipliers do not decide stability; follow the path with stability=False")
+    if stop is not None and not callable(stop):
+        raise ValueError("stop must be a callable (result) -> bool")
+    locate_tol = positive("locate_tol", locate_tol)
+    opts = make_options(options)
+    rod.check_constraints()
+    F = _Follower(rod, opts, load_scale)
+    if load_scale is not None:
+        positive("load_scale", load_scale)
+    result = PathResult(rod)
+
+    if start is None:
+        ok, r, R, info = newton(F.system, rod.r0.copy(), rod.R0.copy(), 0.0,
+                                np.zeros(rod.mesh.n_dofs), opts)
+        if not ok:
+            result.finish(False, f"the unloaded reference is not in equilibrium: "
+                                 f"{info['reason']}")
+            return result
+        lam = 0.0
+        ty, tl = F.tangent(r, R, lam)
+        if lam_stop is not None and lam_stop < 0:
+            ty, tl = -ty, -tl
+    else:
+        r, R, lam, ty, tl = start
+        r, R, lam = np.asarray(r, float).copy(), np.asarray(R, float).copy(), float(lam)
+        ty, tl = np.asarray(ty, float), float(tl)
+        if F.psi2 is None:
+            F.tangent(r, R, lam)             # sets psi from the local load tangent
+        nrm = np.sqrt(F.dot(ty, ty, tl, tl))
+        ty, tl = ty / nrm, tl / nrm
+        info = dict(iterations=0, history=[])
+        res, K, f_ext, iw = F.system.evaluate(r, R, lam)
+        info.update(res=res, iw=iw)
+    result.load_scale = float(np.sqrt(F.psi2))
+    if ds is None:            # a load increment of load_step along the initial tangent
+        load_step = positive("load_step", load_step)
+        ds = load_step / abs(tl) if abs(tl) > 1e-12 else load_step
+    ds = positive("ds", ds)
+    ds_max = 20.0 * ds if ds_max is None else positive("ds_max", ds_max)
+    ds_min = 1e-6 * ds if ds_min is None else positive("ds_min", ds_min)
+
+    def record(r, R, lam, info, s, ty, tl):
+        result.append(lam, r, R, info, time=s)
+        result._s.append(s)
+        result._tlam.append(tl)
+        result.tangents.append((ty, tl))
+        if stability:
+            m = F.modes(r, R, lam, n_eigen)
+            result._eig.append(m.values)
+            result._index.append(m.negative)
+            result._modes_last = m
+        else:
+            result._eig.append(None)
+            result._index.append(-1)
+        if callback is not None:
+            callback(result, len(result.steps) - 1)
+
+    s_path = 0.0
+    record(r, R, lam, info, s_path, ty, tl)
+    max_spin = opts.max_rotation_step
+    k = 0
+    while k < max_steps:
+        # predictor: tangent, spins bounded by max_rotation_step
+        spin = np.abs((ds * ty).reshape(-1, 6)[:, 3:]).max()
+        h = min(ds, ds * max_spin / spin) if spin > 0 else ds
+        land = False
+        ok, r1, R1, lam1, info = F.step(r, R, lam, F.D2 * ty, F.psi2 * tl, h, h * ty, h * tl)
+        if ok and lam_stop is not None and (lam - lam_stop) * (lam1 - lam_stop) < 0:
+            # crossed lam_stop: place the point on it (corrector with Dlam fixed)
+            frac = (lam_stop - lam) / (lam1 - lam)
+            ok, r1, R1, lam1, info = F.step(r, R, lam, np.zeros_like(ty), 1.0, lam_stop - lam,
+                                            frac * h * ty, frac * h * tl)
+            land = ok
+            h = frac * h
+        if not ok:
+            ds = 0.5 * h
+            result.log.append(f"step from lam={lam:.6g} (ds={h:.3g}) failed: {info['reason']}; "
+                              "halving ds")
+            if ds < ds_min:
+                result.finish(False, f"stopped at load factor {lam:.6g}: step failed "
+                                     f"({info['reason']}) and ds fell below ds_min={ds_min:g}")
+                return result
+            continue
+        ty1, tl1 = F.tangent(r1, R1, lam1, K=info["K"], orient=(ty, tl))
+        s_path += h
+        k += 1
+        record(r1, R1, lam1, info, s_path, ty1, tl1)
+        if stability and locate and result._index[-1] != result._index[-2]:
+            cp = _locate(F, result, r, R, lam, ty, tl, h, locate_tol, n_eigen)
+            if cp is not None:
+                result.critical.append(cp)
+        r, R, lam, ty, tl = r1, R1, lam1, ty1, tl1
+        its = max(info["iterations"], 1)
+        ds = float(np.clip(h * np.clip(np.sqrt(target_iterations / its), 0.5, 2.0),
+                           ds_min, ds_max))
+        if land:
+            result.finish(True, f"reached load factor {lam_stop:g} after {k} steps "
+                                f"(arclength {s_path:.4g})")
+            return result
+        if stop is not None and stop(result):
+            result.finish(True, f"stopped by the stop condition after {k} steps at load "
+                                f"factor {lam:.6g}")
+            return result
+    result.finish(lam_stop is None, f"{max_steps} steps done at load factor {lam:.6g} "
+                                    f"(arclength {s_path:.4g})")
+    return result
+
+
+def _locate(F, result, r, R, lam, ty, tl, h, tol, n_eigen):
+    """Bisection in arclength for the change of the Morse index between the
+    last two points of ``result``; regula falsi on the crossing eigenvalue
+    for the final estimate."""
+    ia, ib = result._index[-2], result._index[-1]
+    j = min(ia, ib)                   # the eigenvalue that crosses zero
+    if j >= n_eigen:
+        j = None                      # not among the computed: bisection on the index only
+        fa = fb = 0.0
+    else:
+        fa, fb = result._eig[-2][j], result._eig[-1][j]
+    fa0 = fa
+    lo, hi = 0.0, h
+    state_lo = (r, R, lam)
+    n_eval = 0
+    while hi - lo > tol * max(h, 1e-300) and n_eval < 60:
+        mid = 0.5 * (lo + hi)
+        ok, r1, R1, lam1, info = F.step(r, R, lam, F.D2 * ty, F.psi2 * tl, mid, mid * ty,
+                                        mid * tl)
+        if not ok:
+            break
+        m = F.modes(r1, R1, lam1, n_eigen)
+        n_eval += 1
+        # A side: the crossing eigenvalue keeps its sign (its sign resolves the
+        # crossing below the inertia's numerical-zero floor); else the index
+        same = (np.sign(m.values[j]) == np.sign(fa0)) if j is not None else m.negative == ia
+        if same:
+            lo, state_lo = mid, (r1, R1, lam1)
+            fa = m.values[j] if j is not None else 0.0
+        else:
+            hi = mid
+            fb = m.values[j] if j is not None else 0.0
+    # regula falsi inside the bracket for the crossing arclength
+    s_c = lo + (hi - lo) * fa / (fa - fb) if fa * fb < 0 else 0.5 * (lo + hi)
+    ok, rc, Rc, lamc, info = F.step(r, R, lam, F.D2 * ty, F.psi2 * tl, s_c, s_c * ty,
+                                    s_c * tl)
+    if not ok:
+        rc, Rc, lamc = state_lo
+    from .stability import _modes
+    m = _modes(F.system, rc, Rc, lamc, 1, 0.0)        # the eigenpair nearest zero
+    jj = 0
+    tl_prev, tl_next = result._tlam[-2], result._tlam[-1]
+    kind = "limit" if tl_prev * tl_next < 0 else "bifurcation"
+    return CriticalPoint(kind=kind, load_factor=float(lamc), step=len(result.steps) - 2,
+                         arclength=float(result._s[-2] + s_c), r=rc, R=Rc,
+                         mode_positions=m.positions[jj], mode_spins=m.spins[jj],
+                         eigenvalue=float(m.values[jj]),
+                         bracket=(float(result._s[-2] + lo), float(result._s[-2] + hi)),
+                         tangent=np.concatenate([ty, [tl]]),
+                         load_scale=float(np.sqrt(F.psi2)))
+
+
+def switch_branch(rod, point, ds=None, lam_stop=None, side=1, **kwargs):
+    """Follow the branch that crosses the path at the bifurcation ``point``
+    (:class:`CriticalPoint`): start from the point with the critical mode
+    as the tangent (``side = +1`` or ``-1`` picks its sign), the load factor
+    free.  Other arguments as in :func:`follow`; ``ds`` defaults to a step
+    of 1e-2 in the scaled norm."""
+    if side not in (1, -1):
+        raise ValueError(f"side must be +1 or -1, got {side!r}")
+    if not isinstance(point, CriticalPoint):
+        raise ValueError("point must be a CriticalPoint of a PathResult (result.critical)")
+    mode = np.concatenate([point.mode_positions, point.mode_spins], axis=1).ravel()
+    kwargs["ds"] = 1e-2 if ds is None else ds
+    kwargs.setdefault("load_scale", point.load_scale)
+    return follow(rod, lam_stop=lam_stop,
+                  start=(point.r, point.R, point.load_factor, side * mode, 0.0), **kwargs)
+
+
+def solve_arclength(rod, n_steps=1, path=None, callback=None, **options):
+    """:meth:`Rod.solve` with ``method="arclength"``: :func:`follow` from
+    load factor 0 to ``path[-1]`` (default 1), first load step
+    ``path[-1] / n_steps``."""
+    if not (isinstance(n_steps, (int, np.integer)) and not isinstance(n_steps, bool)
+            and n_steps >= 1):
+        raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    if path is None:
+        lam_end = 1.0
+    else:
+        p = np.asarray(path, dtype=float)
+        if p.shape != (2,) or p[0] != 0.0 or not np.isfinite(p[1]) or p[1] == 0.0:
+            raise ValueError("with method='arclength' path must be (0, lam_end) with a finite "
+                             f"lam_end != 0 (the continuation turns back by itself), got {path!r}")
+        lam_end = float(p[1])
+    options.setdefault("load_step", abs(lam_end) / n_steps)
+    return follow(rod, lam_stop=lam_end, callback=callback, **options)

@@ -1,0 +1,143 @@
+"""Frictional contact work (skfem_rod.contact.friction_assembly): the
+consistent tangent against central differences of the residual in seeded
+random near-contact states, stick and slip, tangential and rotational;
+rolling is not slip; the slips of rigid motions vanish."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod
+from skfem_rod.contact import friction as law
+from skfem_rod.contact.assembly import contact_work
+from skfem_rod.contact.friction_assembly import friction_work
+from skfem_rod.contact.search import search, slave_points
+from skfem_rod.rotations import expm
+
+from test_contact import SEC, hairpin
+
+EPS = 0.105
+
+
+def _setup(seed, n_el=16):
+    rng = np.random.default_rng(seed)
+    rod = Rod(hairpin(EPS, 0.2, leg=1.0), SEC, n_el)
+    nn = rod.mesh.n_nodes
+    # last converged state: reference with noise; current: a step away
+    r_n = rod.r0 + 0.002 * rng.normal(size=(nn, 3))
+    R_n = expm(0.3 * rng.normal(size=(nn, 3))) @ rod.R0
+    r = r_n + 0.004 * rng.normal(size=(nn, 3))
+    R = expm(0.05 * rng.normal(size=(nn, 3))) @ R_n
+    sl = slave_points(rod.mesh, 3)
+    ns = sl.s.size
+    lam_N = 0.01 * np.abs(rng.normal(size=ns))
+    lam_T = 0.005 * rng.normal(size=(ns, 3))
+    lam_R = 0.002 * rng.normal(size=(ns, 3))
+    return rng, rod, r, R, r_n, R_n, sl, lam_N, lam_T, lam_R
+
+
+def _eval(rod, r, R, r_n, R_n, sl, lams, params, tangent=True):
+    pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+    lam_N, lam_T, lam_R = lams
+    return friction_work(rod.mesh, r, R, r_n, R_n, pairs, lam_N, params["mu_N"], EPS,
+                         lam_T, lam_R, params["gamma_T"], params["gamma_R"],
+                         params["mu_T"], params["mu_R"], tangent)
+
+
+# two regimes: mostly slipping (small coefficients) and mostly sticking
+REGIMES = {
+    "slip": dict(mu_N=1e-3, gamma_T=0.3, gamma_R=0.01, mu_T=1e-3, mu_R=1e-3),
+    "stick": dict(mu_N=1e-3, gamma_T=5.0, gamma_R=2.0, mu_T=1e-1, mu_R=1e-1),
+}
+
+
+@pytest.mark.parametrize("regime", ["slip", "stick"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_friction_tangent_matches_finite_differences(seed, regime):
+    rng, rod, r, R, r_n, R_n, sl, *lams = _setup(seed)
+    params = REGIMES[regime]
+    f, K, out = _eval(rod, r, R, r_n, R_n, sl, lams, params)
+    m = out.index.size
+    assert m > 20
+    st_T, st_R = out.state_T, out.state_R
+    want = law.SLIP if regime == "slip" else law.STICK
+    # the regime is what its name says for most points, tangential and rotational
+    assert (st_T == want).mean() > 0.6 and (st_R == want).mean() > 0.6
+    # the law holds pointwise: |f| <= gamma f_N
+    assert np.all(np.linalg.norm(out.force_T, axis=1) <= params["gamma_T"] * out.fN * (1 + 1e-12))
+    assert np.all(np.linalg.norm(out.force_R, axis=1) <= params["gamma_R"] * out.fN * (1 + 1e-12))
+    d = rng.normal(size=rod.mesh.n_dofs)
+    d.reshape(-1, 6)[:, 3:] *= 0.3
+
+    def shifted(t):
+        dd = t * d.reshape(-1, 6)
+        return r + dd[:, :3], expm(dd[:, 3:]) @ R
+
+    h = 1e-7
+    fp = _eval(rod, *shifted(h), r_n, R_n, sl, lams, params, False)[0]
+    fm = _eval(rod, *shifted(-h), r_n, R_n, sl, lams, params, False)[0]
+    fd = (fp - fm) / (2 * h)
+    Kd = K @ d
+    assert np.abs(fd - Kd).max() <= 1e-6 * np.abs(fd).max()
+    # the friction tangent is not symmetric (Coulomb)
+    assert abs(K - K.T).max() > 1e-3 * abs(K).max()
+
+
+def test_rigid_motion_gives_no_slip():
+    """A rigid rotation + translation of the whole rod over the step is no
+    slip: g_T = g_R = 0 at every pair (objectivity of the slip measures)."""
+    rng, rod, r, R, r_n, R_n, sl, *lams = _setup(5)
+    Q = expm(np.array([0.3, -0.2, 0.5]))
+    c = np.array([0.1, 0.2, -0.3])
+    r_rig = r_n @ Q.T + c
+    R_rig = Q @ R_n
+    f, K, out = _eval(rod, r_rig, R_rig, r_n, R_n, sl, lams, REGIMES["slip"])
+    assert out.index.size > 0
+    # g_R is exact for a finite rigid rotation (the same rotation increment
+    # at every node)
+    assert np.abs(out.slip_R).max() < 1e-12
+    # g_T: the lever-arm term rho (phi_s + phi_m) x N cancels the relative
+    # displacement of the centreline points to first order in the angle
+    # (finite rotation: chord vs rotation vector, second order)
+    for t in (1e-2, 1e-3):
+        Qt = expm(t * np.array([0.3, -0.2, 0.5]))
+        f, K, out = _eval(rod, r_n @ Qt.T + c, Qt @ R_n, r_n, R_n, sl, lams, REGIMES["slip"])
+        assert np.abs(out.slip_T).max() < 0.5 * (0.62 * t) ** 2 * 0.25
+
+
+def test_rolling_is_not_slip():
+    """Two parallel legs rolling on each other: the slave leg translates
+    along the legs by ``v`` while its sections spin by ``v / rho`` about the
+    normal of the plane of the legs: the material points in contact do
+    not move relative to each other, so g_T = 0 while the centreline points
+    did move relative to each other."""
+    rng, rod, r, R, r_n, R_n, sl, *lams = _setup(0)
+    # state: the reference hairpin (legs along x at y = 0 and y = 0.2)
+    r_n, R_n = rod.r0.copy(), rod.R0.copy()
+    s = rod.mesh.s_nodes
+    upper = s > 1.0 + np.pi * 0.1                    # the free (upper) leg
+    v = 1e-3
+    r = r_n.copy()
+    r[upper, 0] += v                                 # upper leg moves along +x
+    # rolling on the lower leg (contact normal N = +y from master to slave,
+    # centreline distance l = 0.2, contact point at the midpoint, lever arm
+    # rho = l/2): the slave's material point r - rho N must not move:
+    # v e_x + w x (-rho e_y) = 0  ->  w = -v/rho e_z
+    rho = 0.1
+    R = R_n.copy()
+    R[upper] = expm(np.array([0.0, 0.0, -v / rho])) @ R_n[upper]
+    f, K, out = _eval(rod, r, R, r_n, R_n, sl, lams, REGIMES["slip"])
+    s_of = out.index
+    assert s_of.size > 0
+    pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+    on_upper = pairs.s[s_of] > 1.0 + np.pi * 0.1 + 0.2
+    on_lower = pairs.s[s_of] < 0.8
+    assert on_upper.any() and on_lower.any()
+    # slave on the rolling leg, master on the still one: no tangential slip
+    assert np.abs(out.slip_T[on_upper]).max() < 1e-9 * v
+    # but relative rotation about z: the rotational slip sees the spin
+    assert np.allclose(out.slip_R[on_upper], [0, 0, -v / rho], atol=1e-12)
+    # the centreline points did move relative to each other by v
+    # and sliding instead (no spin) is slip v along x
+    f, K, out = _eval(rod, r, R_n, r_n, R_n, sl, lams, REGIMES["slip"])
+    pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+    on_upper = pairs.s[out.index] > 1.0 + np.pi * 0.1 + 0.2
+    assert np.allclose(out.slip_T[on_upper], [v, 0, 0], atol=1e-9 * v)

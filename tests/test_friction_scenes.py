@@ -1,0 +1,124 @@
+"""Coulomb self-friction in solved scenes: the rotational-friction scene
+saturates at gamma_R F_N (demos/rotational_friction.py), Coulomb's law
+holds at every converged step (bound, alignment in slip, dissipation >= 0),
+and friction off means friction absent (no friction code runs, results equal
+the frictionless solver's)."""
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+
+from skfem_rod.contact import friction_assembly
+
+DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+rf = _load("rotational_friction")
+
+
+def _coulomb_checks(result, gamma_T, gamma_R):
+    """Coulomb's law at every converged step, for every active point."""
+    for st in result.steps[1:]:
+        c = st.contact
+        assert c.friction
+        assert np.all(c.force >= 0)
+        for gamma, f, g, state in ((gamma_T, c.force_T, c.slip_T, c.state_T),
+                                   (gamma_R, c.force_R, c.slip_R, c.state_R)):
+            if gamma == 0:                   # that law is off: no force
+                assert np.all(f == 0)
+                continue
+            # the bound |f| <= gamma f_N (to round-off)
+            assert np.all(np.linalg.norm(f, axis=1) <= gamma * c.force * (1 + 1e-12) + 1e-300)
+            slip = state == 2
+            if slip.any():
+                # at slipping points |f| = gamma f_N and f points along the slip
+                assert np.allclose(np.linalg.norm(f[slip], axis=1), gamma * c.force[slip],
+                                   rtol=1e-12)
+                gn = np.linalg.norm(g[slip], axis=1)
+                big = gn > 1e-3 * gn.max()
+                cos = (np.sum(f[slip] * g[slip], axis=1)[big]
+                       / (np.linalg.norm(f[slip], axis=1)[big] * gn[big]))
+                assert cos.min() > 1 - 1e-5
+        assert c.dissipation >= 0
+
+
+@pytest.fixture(scope="module")
+def rotational():
+    return rf.solve(n_elements=32, n_steps=8, phi=0.06)
+
+
+def test_rotational_friction_saturates_at_gamma_R_FN(rotational):
+    """The torque transmitted through the contact stretch, measured from
+    the equilibrium (end couple minus the twisting moment at the cut),
+    rises with the end rotation and saturates at gamma_R F_N within 2 %
+    (measured: 0.06 %)."""
+    assert rotational["result"].converged, rotational["result"].message
+    rows = rotational["rows"]
+    T = np.array([r["transmitted"] for r in rows])
+    bound = np.array([r["bound"] for r in rows])
+    # the stretch is pressed: F_N carries most of P = 2 (the ramp the rest)
+    FN = np.array([r["FN"] for r in rows])
+    assert np.all((FN[1:] > 0.75 * 2.0) & (FN[1:] < 2.0))
+    # rises, then stays on the bound once every point slips
+    assert 0 < T[1] < T[2]
+    saturated = [k for k, r in enumerate(rows) if r["stick"] == 0 and r["slip"] > 0]
+    assert len(saturated) >= 5
+    for k in saturated:
+        assert T[k] == pytest.approx(bound[k], rel=0.02)
+    assert np.abs(T[saturated] / bound[saturated] - 1).max() < 2e-3
+    # never above the bound by more than the saturated tolerance
+    assert np.all(T[1:] <= bound[1:] * 1.02)
+    # only rotational friction acts: the tangential forces are zero
+    for st in rotational["result"].steps[1:]:
+        assert np.all(st.contact.force_T == 0)
+
+
+def test_rotational_scene_obeys_coulomb_at_every_step(rotational):
+    res = rotational["result"]
+    _coulomb_checks(res, 0.0, rf.EPS)
+    for st in res.steps[1:]:
+        assert st.contact.penetration <= 1e-3 * rf.EPS
+
+
+def test_friction_off_runs_no_friction_code_and_equals_frictionless(monkeypatch):
+    """gamma_T = gamma_R = 0 is contact without friction: the friction
+    assembler is never called (patched to fail) and the result equals the
+    result of a rod with friction options left at their defaults, to 1e-12
+    (they are the same code path)."""
+    def boom(*a, **k):
+        raise AssertionError("friction code ran with gamma_T = gamma_R = 0")
+    monkeypatch.setattr(friction_assembly, "friction_work", boom)
+    rod, _ = rf.build(gamma_R=0.0, n_elements=16, phi=0.03)
+    rod.contact.mu_R = 123.0             # friction parameters are ignored
+    res = rod.solve(n_steps=2)
+    assert res.converged
+    rod2, _ = rf.build(gamma_R=0.0, n_elements=16, phi=0.03)
+    res2 = rod2.solve(n_steps=2)
+    for a, b in zip(res.steps, res2.steps):
+        assert np.abs(a.r - b.r).max() <= 1e-12
+        assert np.abs(a.R - b.R).max() <= 1e-12
+    assert res.steps[-1].contact.force_T is None
+
+
+def test_dissipated_energy_and_stick_slip_render(rotational, tmp_path):
+    """The cumulative friction work never decreases along the path, and the
+    render colours the contact markers by state (all slip: orange)."""
+    res = rotational["result"]
+    D = res.dissipated_energy()
+    assert D.shape == (len(res.steps),)
+    assert np.all(np.diff(D) >= 0) and D[-1] > 0
+    import matplotlib.image as mpimg
+    path = res.render(str(tmp_path / "rf.png"), window_size=(400, 300))
+    img = mpimg.imread(path)[..., :3]
+    orange = (img[..., 0] > 0.85) & (np.abs(img[..., 1] - 0.5) < 0.12) & (img[..., 2] < 0.25)
+    green = (img[..., 1] > 0.5) & (img[..., 0] < 0.3) & (img[..., 2] < 0.3)
+    assert orange.sum() > 50          # slipping points
+    assert green.sum() == 0           # no sticking point at the last step

@@ -1,0 +1,83 @@
+"""Squeezed loop (demos/squeezed_loop.py): an open ring clamped at both ends
+is squeezed at its quarter points until its sides touch, then released
+(load path 0 -> 1 -> 0): contact appears and disappears, the contact law
+holds at every converged step, and the frictionless, elastic rod comes back
+exactly to its reference state (10-60 s)."""
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+
+DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
+
+
+def load(name):
+    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+demo = load("squeezed_loop")
+
+
+@pytest.fixture(scope="module")
+def squeezed():
+    return demo.solve(n_steps=16, force=20.0)
+
+
+def test_contact_appears_and_disappears(squeezed):
+    assert squeezed["converged"], squeezed["message"]
+    rec = squeezed["records"]
+    n = np.array([r["contacts"] for r in rec])
+    lam = np.array([r["load_factor"] for r in rec])
+    assert lam.max() == 1.0 and lam[-1] == 0.0
+    on = np.flatnonzero(n > 0)
+    # zero, then positive on one unbroken stretch around the peak, then zero
+    assert n[0] == 0 and n[-1] == 0 and on.size >= 3
+    assert np.array_equal(on, np.arange(on[0], on[-1] + 1))
+    assert lam[on[0]] < 1.0 and lam[on[-1]] < 1.0 and np.argmax(lam) in on
+    # the quarter points approach while loading up to contact, and recede
+    # while unloading after it
+    d = np.array([r["quarter_distance"] for r in rec])
+    assert np.all(np.diff(d[:on[0] + 1]) < 0) and np.all(np.diff(d[on[-1]:]) > 0)
+    eps = squeezed["rod"].contact.radius
+    assert np.all(d[on] < 2.1 * eps) and np.all(d[n == 0] > 4 * eps)
+
+
+def test_contact_law_at_every_step(squeezed):
+    rod = squeezed["rod"]
+    tol = rod.contact.tolerance * rod.contact.radius
+    for st in squeezed["result"].steps:
+        c = st.contact
+        assert c.penetration <= tol                       # no penetration beyond tolerance
+        assert np.all(c.force > 0)                        # f_N >= 0 (active: > 0)
+        assert np.all(np.abs(c.gap) <= tol)               # complementarity: on contact
+        assert c.uzawa_converged
+
+
+def test_back_to_the_start(squeezed):
+    """Frictionless and elastic: path independent.  At the end of 0 -> 1 -> 0
+    the rod is in its reference state; the peak strain energy is 9.5."""
+    res, rod = squeezed["result"], squeezed["rod"]
+    first, last = res.steps[0], res.steps[-1]
+    assert max(s.energy for s in res.steps) > 9.0
+    assert last.energy < 1e-12
+    assert np.abs(last.r - first.r).max() < 1e-10 * rod.length
+    assert np.abs(last.R - first.R).max() < 1e-10
+    # loading and unloading pass through the same states: to round-off
+    # without contact, to within the contact tolerance (10 x the Uzawa
+    # tolerance on positions, 1e-3 on the contact force) in contact
+    rec = squeezed["records"]
+    tol = rod.contact.tolerance * rod.contact.radius
+    for i, r in enumerate(rec):
+        j = len(rec) - 1 - i
+        assert r["load_factor"] == rec[j]["load_factor"]
+        dr = np.abs(res.steps[i].r - res.steps[j].r).max()
+        if r["contacts"] == 0 and rec[j]["contacts"] == 0:
+            assert dr < 1e-9 * rod.length
+        else:
+            assert r["contacts"] == rec[j]["contacts"]
+            assert dr < 10 * tol
+            assert r["contact_force"] == pytest.approx(rec[j]["contact_force"], rel=1e-3)
