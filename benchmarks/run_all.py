@@ -18,6 +18,7 @@ statics    bench_statics.py        RESULTS_statics.md, work_precision.png,
 stress     stress.py               RESULTS_stress.md
 contact    bench_contact.py        RESULTS_contact.md (and its PNGs, if any)
 friction   bench_friction.py       RESULTS_friction.md
+scaling_contact scaling_contact.py RESULTS_scaling_contact.md (plectoneme, 10-10000 elements)
 peer       bench_peer.py           RESULTS_peer.md, peer.png; needs the
                                    optional ``bench`` extra (pyelastica)
 =========  ======================  =========================================
@@ -48,6 +49,8 @@ PARTS = {
                "RESULTS_stress_quick.md", None),
     "contact": ("bench_contact.py", [], ["--quick"], "RESULTS_contact.md",
                 "RESULTS_contact_quick.md", None),
+    "scaling_contact": ("scaling_contact.py", [], ["--quick"], "RESULTS_scaling_contact.md",
+                        "{tmp}/RESULTS_scaling_contact_quick.md", None),   # --quick: no file
     "friction": ("bench_friction.py", [], ["--quick"], "RESULTS_friction.md",
                  "{tmp}/RESULTS_friction_quick.md", None),     # --quick writes no file
     "peer": ("bench_peer.py", [], ["--quick", "--output", "{tmp}/RESULTS_peer_quick.md",
@@ -57,6 +60,7 @@ PARTS = {
 TITLES = {"statics": "Statics: work-precision, cost and memory per Newton iteration",
           "stress": "Numerical stability stress tests",
           "contact": "Contact: cost per Newton iteration",
+          "scaling_contact": "Contact: scaling of a Newton iteration, 10 to 10,000 elements",
           "friction": "Friction: cost per Newton iteration, friction on and off",
           "peer": "Peer comparison: PyElastica"}
 
@@ -69,6 +73,7 @@ HEADLINES = {
                 ("line", r"^- Iteration cost linear")],
     "stress": [("line", r"^\d+ solves, ")],
     "contact": [("line", r"^Log-log slopes"), ("line", r"^Target")],
+    "scaling_contact": [("line", r"^Log-log slopes"), ("line", r"^Target")],
     "friction": [("line", r"[Tt]arget")],
     "peer": [("table", r"^#+ Summary")],
 }
