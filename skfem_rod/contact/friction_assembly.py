@@ -112,6 +112,10 @@ def _vec(coef, v, spin=False):
     return out.reshape(m, 48)
 
 
+#: pairs per chunk of the tangent blocks (18 KB each): a working set in cache
+_CHUNK = 256
+
+
 def _mm(A, B):
     """Batched ``A @ B``."""
     return np.matmul(A, B)
@@ -148,14 +152,18 @@ def scatter_node_blocks(nodes, blocks, n_nodes, b, layout="IaJc"):
     nnz = int(indptr[-1])
     # the CSC position of every entry of every block, built in the layout of
     # ``blocks`` (no transpose of the data): column dof 6 J + c, row 6 I + a
-    wb = within[inv.reshape(m, k, k)]                                       # (m, I, J)
     if layout == "IaJc":
+        wb = within[inv.reshape(m, k, k)]                                   # (m, I, J)
         idx = (indptr[6 * nodes[:, None, None, :, None] + ar[None, None, None, None, :]]
                + wb[:, :, None, :, None] + ar[None, None, :, None, None])
+        data = np.bincount(idx.ravel(), weights=blocks.ravel(), minlength=nnz)
     else:
-        idx = (indptr[6 * nodes[:, None, :, None, None] + ar[None, None, None, None, :]]
-               + wb[:, :, :, None, None] + ar[None, None, None, :, None])
-    data = np.bincount(idx.ravel(), weights=blocks.ravel(), minlength=nnz)
+        # whole blocks summed by their (row node, column node): one sparse
+        # (unique block x block) product, then written at the blocks' places
+        S = sp.csr_matrix((np.ones(m * k * k), (inv.ravel(), np.arange(m * k * k))),
+                          shape=(nb, m * k * k))
+        data = np.empty(nnz)
+        data[pos.ravel()] = (S @ blocks.reshape(m * k * k, b * b)).ravel()
     indices = np.empty(nnz, dtype=np.int32 if nnz < 2**31 else np.int64)
     indices[pos.ravel()] = np.broadcast_to(6 * brow[:, None, None] + ar[None, :, None],
                                            pos.shape).ravel()
@@ -265,28 +273,37 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     c_w = np.concatenate([Ns, -Nm], axis=1)
     c_l = np.concatenate([Ns, Nm], axis=1)
     c_dm_neg = np.concatenate([zero, -dNm], axis=1)
-    Ke = np.empty((m, 8, 6, 48))
-    Ke[:, :, :3] = c_rel[:, :, None, None] * DfT[:, None]
-    Ke[:, :, 3:] = (c_w[:, :, None, None] * DfR[:, None]
-                    - (rho[:, None] * c_l)[:, :, None, None] * Dq[:, None]
-                    - c_l[:, :, None, None] * q[:, None, :, None] * Drho[:, None, None, :])
+    wc = w[:, None]
+    A_T, A_R, A_q, A_l = wc * c_rel, wc * c_w, wc * rho[:, None] * c_l, wc * c_l
     # the master shape functions move with xi
-    Ke[:, :, :3] += (c_dm_neg[:, :, None] * fT[:, None, :])[..., None] * Xi[:, None, None, :]
-    Ke[:, :, 3:] += ((c_dm_neg[:, :, None] * fR[:, None, :]
-                      - (rho[:, None] * c_dm)[:, :, None] * q[:, None, :])[..., None]
-                     * Xi[:, None, None, :])
-    Ke *= w[:, None, None, None]
+    M_pos = (wc * c_dm_neg)[:, :, None] * fT[:, None, :]
+    M_spin = ((wc * c_dm_neg)[:, :, None] * fR[:, None, :]
+              - (wc * rho[:, None] * c_dm)[:, :, None] * q[:, None, :])
     # the slaves of one element on one master element share their 8 nodes:
-    # sum their blocks first (about 3x fewer blocks to scatter), slot by
-    # slot of the groups (at most 2 n_slave slots)
+    # their blocks are summed before the scatter (about 3x fewer blocks);
+    # pairs sorted by (slave element, master element), blocks built chunk
+    # by chunk (a working set that stays in cache), summed slot by slot
     key = ve * mesh.nodes.shape[0] + me
     order = np.argsort(key, kind="stable")
     new = np.r_[True, key[order][1:] != key[order][:-1]]
     start = np.flatnonzero(new)
     group = np.cumsum(new) - 1
     slot = np.arange(m) - start[group]
-    Kg = Ke[order[start]]
-    for j in range(1, int(slot.max()) + 1):
-        Kg[group[slot == j]] += Ke[order[slot == j]]
-    K = scatter_node_blocks(nodes[order[start]], Kg.reshape(-1, 8, 6, 8, 6), mesh.n_nodes, 6)
+    Kg = np.zeros((start.size, 8, 8, 6, 6))             # (group, I, J, a, c)
+    for a in range(0, m, _CHUNK):
+        ix = order[a:a + _CHUNK]
+        Ke = np.empty((ix.size, 8, 6, 48))
+        Ke[:, :, :3] = (A_T[ix][:, :, None, None] * DfT[ix][:, None]
+                        + M_pos[ix][..., None] * Xi[ix][:, None, None, :])
+        Ke[:, :, 3:] = (A_R[ix][:, :, None, None] * DfR[ix][:, None]
+                        - A_q[ix][:, :, None, None] * Dq[ix][:, None]
+                        - A_l[ix][:, :, None, None] * q[ix][:, None, :, None]
+                        * Drho[ix][:, None, None, :]
+                        + M_spin[ix][..., None] * Xi[ix][:, None, None, :])
+        Ke = np.ascontiguousarray(Ke.reshape(ix.size, 8, 6, 8, 6).transpose(0, 1, 3, 2, 4))
+        g, sl = group[a:a + _CHUNK], slot[a:a + _CHUNK]
+        for j in range(int(sl.max()) + 1):
+            sel = sl == j
+            Kg[g[sel]] += Ke[sel]
+    K = scatter_node_blocks(nodes[order[start]], Kg, mesh.n_nodes, 6, layout="IJac")
     return force, K, out
