@@ -80,16 +80,19 @@ def hysteresis(records, at):
 
 
 #: settings of the test suite and of the gallery (demos/gallery.py)
-SMALL = dict(gammas=(0.3,), n_elements=16, turns=1.5, n_steps=6, window_size=(480, 360))
-GALLERY = dict(gammas=(0.0, 0.3), n_elements=24, turns=4.0, n_steps=40, window_size=(720, 540))
+SMALL = dict(gammas=(0.3,), n_elements=16, turns=1.5, n_steps=6, window_size=(480, 360),
+             gif_size=(240, 180))
+GALLERY = dict(gammas=(0.0, 0.3), n_elements=24, turns=4.0, n_steps=40, window_size=(720, 540),
+               gif_size=(360, 270))
 
 
 def main(out="output/plectoneme_friction", gammas=(0.0, 0.3), length=5.0, n_elements=24,
          radius=0.1, turns=4.0, n_steps=40, render=True, verbose=True,
-         window_size=(1024, 768)):
+         window_size=(1024, 768), animate=True, gif_size=(480, 360)):
     """Solve each friction coefficient of ``gammas``, write ``results.json``,
-    the torque-turns plot and a render of the plectoneme at the top of the
-    path (contact points coloured by stick / slip)."""
+    the torque-turns plot, a render of the plectoneme at the top of the
+    path and (``animate=True``) an animated GIF of the last run's load path,
+    up and back (contact points coloured by stick / slip)."""
     os.makedirs(out, exist_ok=True)
     sols = []
     for g in gammas:
@@ -122,7 +125,29 @@ def main(out="output/plectoneme_friction", gammas=(0.0, 0.3), length=5.0, n_elem
                    title=f"gamma_T = {s['gamma_T']:g}, {turns:g} turns "
                          "(contacts: stick green, slip orange)")
         summary["renders"].append(png)
+        if animate:
+            summary["animations"] = [_animate(s, os.path.join(out, "plectoneme_friction.gif"),
+                                              gif_size)]
     return summary
+
+
+def _animate(sol, path, size):
+    """GIF of the load path of one run: one frame per converged step, one
+    camera for all frames, contact markers coloured by their (tangential)
+    stick / slip state."""
+    from skfem_rod.render import render_animation
+    res = sol["result"]
+    configs, points, states, titles = [], [], [], []
+    for k, st in enumerate(res.steps):
+        f = res.sample(6, k)
+        configs.append((f["r"], f["R"]))
+        c = st.contact
+        points.append(res.contact_points(k))
+        states.append(c.state_T if c.friction else np.zeros(c.s.size, int))
+        titles.append(f"{sol['records'][k]['turns']:.2f} turns")
+    return render_animation(path, configs, res.rod.contact.radius, window_size=size,
+                            titles=titles, contact_points=points, contact_states=states,
+                            camera=(0.35, -1.0, 0.6), fps=6)
 
 
 def _plot(sols, path):

@@ -87,7 +87,9 @@ def test_demo_runs_headless_at_small_size(name, tmp_path):
             assert frames[0].shape[:2] == tuple(settings["gif_size"])[::-1]
         for k, f in enumerate(frames):
             assert_not_blank(f, f"{path} frame {k}")
-        assert np.abs(frames[0] - frames[-1]).max() > 0.5, "the animation does not move"
+        # some frame differs from the first (a load cycle ends where it began)
+        assert max(np.abs(f - frames[0]).max() for f in frames) > 0.5, \
+            "the animation does not move"
 
 
 def test_bend45_tip_matches_the_shooting_reference(tmp_path):
