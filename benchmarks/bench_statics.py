@@ -48,7 +48,7 @@ import scipy.sparse.linalg as spla
 from skfem_rod import Rod, Section, geometry, analytic
 from skfem_rod.assembly import internal_work, shape_operator
 from skfem_rod.rotations import expm
-from skfem_rod.solver import _System, SolverOptions, _update
+from skfem_rod.solver import _System
 
 HERE = Path(__file__).resolve().parent
 
@@ -97,38 +97,19 @@ def bend_shape():
 
 def bend_reference(rtol=1e-12):
     """Tip of the 45-degree bend at P = 600 by shooting on the 3D
-    Simo-Reissner equations (as in tests/test_verification.py):
+    Simo-Reissner equations (:func:`skfem_rod.analytic.clamped_rod_shooting`,
+    the reference of tests/test_verification.py):
     ``r' = R v``, ``R' = R hat(u)``, ``m' = -r' x n``, ``n = F`` (dead tip
     force), ``(v, u) = (e3, e2 / radius) + C^-1 (R^T n, R^T m)``; the
     unknown ``m(0)`` solves ``m(L) = 0`` (continuation over 150, 300, 450,
     600).  Only the frame at s = 0 is taken from the package."""
-    from scipy.integrate import solve_ivp
-    from scipy.optimize import fsolve
     shape = bend_shape()
     C = np.diag([BEND_SECTION[k] for k in ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")])
-    Ci = np.linalg.inv(C)
-    eps0 = np.array([0.0, 0.0, 1.0, 0.0, 1.0 / BEND_RADIUS, 0.0])
     R00 = shape(np.array([0.0]))[1][0]
-
-    def rhs(s, y, F):
-        R, m = y[3:12].reshape(3, 3), y[12:]
-        e = eps0 + Ci @ np.r_[R.T @ F, R.T @ m]
-        v, u = e[:3], e[3:]
-        uhat = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
-        rp = R @ v
-        return np.r_[rp, (R @ uhat).ravel(), -np.cross(rp, F)]
-
-    def shoot(m0, F):
-        sol = solve_ivp(rhs, (0.0, shape.length), np.r_[0, 0, 0, R00.ravel(), m0],
-                        args=(F,), method="DOP853", rtol=rtol, atol=rtol * 1e-2)
-        return sol.y[:, -1]
-
-    m0 = np.zeros(3)
-    for P in (150.0, 300.0, 450.0, BEND_LOAD):
-        F = np.array([0.0, 0.0, P])
-        m0 = fsolve(lambda m: shoot(m, F)[12:], m0, xtol=1e-13)
-    yL = shoot(m0, np.array([0.0, 0.0, BEND_LOAD]))
-    return yL[:3], shape.length
+    tips = analytic.clamped_rod_shooting(
+        C, [0, 0, 1], [0, 1 / BEND_RADIUS, 0], R00, shape.length,
+        [[0.0, 0.0, P] for P in (150.0, 300.0, 450.0, BEND_LOAD)], rtol=rtol)
+    return tips[-1], shape.length
 
 
 def rollup_state(rod):

@@ -96,13 +96,8 @@ def main(out="output/plectoneme_friction", gammas=(0.0, 0.3), length=5.0, n_elem
     os.makedirs(out, exist_ok=True)
     sols = []
     for g in gammas:
-        log = None
-        if verbose:
-            def log(r, g=g):
-                print(f"gamma_T={g:g} t={r['time']:.3f} turns={r['turns']:.2f} "
-                      f"torque={r['torque']:+.4f} contacts={r['contacts']} "
-                      f"dissipation={r['dissipation']:.2e}", flush=True)
-        sols.append(solve(g, length, n_elements, radius, turns, n_steps, log))
+        sols.append(solve(g, length, n_elements, radius, turns, n_steps,
+                          _printer(g) if verbose else None))
     summary = dict(problem="plectoneme twisted up and back, with and without friction",
                    parameters=dict(length=length, n_elements=n_elements, radius=radius,
                                    turns=turns, n_steps=n_steps, gammas=list(gammas),
@@ -148,6 +143,14 @@ def _animate(sol, path, size):
     return render_animation(path, configs, res.rod.contact.radius, window_size=size,
                             titles=titles, contact_points=points, contact_states=states,
                             camera=(0.35, -1.0, 0.6), fps=6)
+
+
+def _printer(g):
+    def log(r):
+        print(f"gamma_T={g:g} t={r['time']:.3f} turns={r['turns']:.2f} "
+              f"torque={r['torque']:+.4f} contacts={r['contacts']} "
+              f"dissipation={r['dissipation']:.2e}", flush=True)
+    return log
 
 
 def _plot(sols, path):

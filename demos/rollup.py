@@ -17,7 +17,6 @@ This demo shows how to:
 The equations are in docs/theory.md; run ``python demos/rollup.py --help``.
 """
 import argparse
-import json
 import os
 import time
 

@@ -143,7 +143,6 @@ class _Follower:
         self.system = _System(rod)
         self.fixed = self.system.fixed
         self.free = self.system.free
-        n = rod.mesh.n_dofs
         # prescribed motion per unit load factor, on the constrained dofs only
         self.pfix = _prescribed_increment(rod, 1.0)          # in the supports' bases
         self.pfix[self.free] = 0.0

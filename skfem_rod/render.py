@@ -207,6 +207,19 @@ def _color_lut(pv, base, stripe, stripe_width, n_colors=512):
     return ListedColormap(colors)
 
 
+def _window_size(window_size):
+    """``(width, height)`` in pixels, checked (integers >= 16)."""
+    try:
+        width, height = (int(v) for v in window_size)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"window_size = {window_size!r}; expected (width, height) in pixels"
+        ) from exc
+    if width < 16 or height < 16:
+        raise ValueError(f"window_size = {window_size!r}; width and height must be >= 16")
+    return width, height
+
+
 def _as_points(name, value):
     a = np.asarray(value, dtype=float)
     if a.ndim == 1 and a.shape[0] == 3:
@@ -333,14 +346,7 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
     pv = _pyvista(off_screen)
     points, frames = _validate_points_frames(points, frames)
     r = _radii(radius, points.shape[0])
-    try:
-        width, height = (int(v) for v in window_size)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(
-            f"window_size = {window_size!r}; expected (width, height) in pixels"
-        ) from exc
-    if width < 16 or height < 16:
-        raise ValueError(f"window_size = {window_size!r}; width and height must be >= 16")
+    width, height = _window_size(window_size)
 
     tube = tube_mesh(points, frames, r, n_around=n_around, stripe_width=stripe_width)
     # |phi| interpolated linearly across the quads and mapped through a
@@ -684,14 +690,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     confs = list(configurations)
     if not confs:
         raise ValueError("configurations is empty; give at least one (points, frames) pair")
-    try:
-        width, height = (int(v) for v in window_size)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(
-            f"window_size = {window_size!r}; expected (width, height) in pixels"
-        ) from exc
-    if width < 16 or height < 16:
-        raise ValueError(f"window_size = {window_size!r}; width and height must be >= 16")
+    width, height = _window_size(window_size)
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps = {fps!r}; expected a number > 0")
     for name, seq in (("titles", titles), ("contact_points", contact_points),

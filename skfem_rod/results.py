@@ -1,6 +1,6 @@
 """Results of a solve: every converged step, queries at any arclength,
 reactions, the load path, and export/render helpers."""
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -1,7 +1,6 @@
 """Closed rods (rings): the reference is an equilibrium, objectivity,
 an exact pressure solution, topology without closure, bad input, and the
 twisted ring folding into three loops (demos/twisted_ring.py)."""
-import importlib.util
 import json
 import pathlib
 
@@ -11,6 +10,8 @@ import pytest
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.rotations import expm
 from skfem_rod.solver import _System
+
+from helpers import load_demo
 
 SEC = Section(1e4, 1e4, 1e4, 1.0, 1.0, 0.8)
 
@@ -79,16 +80,8 @@ def test_closed_rod_bad_input():
         geometry.closed("ring")
 
 
-def load_demo():
-    path = pathlib.Path(__file__).resolve().parents[1] / "demos" / "twisted_ring.py"
-    spec = importlib.util.spec_from_file_location("twisted_ring", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_twisted_ring_folds_into_three_loops(tmp_path):
-    demo = load_demo()
+    demo = load_demo("twisted_ring")
     summary = demo.main(str(tmp_path), **demo.SMALL)
     data = json.loads((tmp_path / "results.json").read_text())
     assert data["converged"] and abs(data["turn_end"] - 2 * np.pi) < 1e-12

@@ -1,19 +1,10 @@
 """Demos are importable, run headless, and write what they promise."""
-import importlib.util
 import json
-import pathlib
 
 import numpy as np
 import pytest
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
-
-
-def load(name):
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_demo as load
 
 
 def test_rollup_demo_writes_results_render_and_series(tmp_path):

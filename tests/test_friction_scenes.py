@@ -3,51 +3,15 @@ saturates at gamma_R F_N (demos/rotational_friction.py), Coulomb's law
 holds at every converged step (bound, alignment in slip, dissipation >= 0),
 and friction off means friction absent (no friction code runs, results equal
 the frictionless solver's)."""
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
 
 from skfem_rod.contact import friction_assembly
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
+from helpers import coulomb_checks, load_demo
 
 
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-rf = _load("rotational_friction")
-
-
-def _coulomb_checks(result, gamma_T, gamma_R):
-    """Coulomb's law at every converged step, for every active point."""
-    for st in result.steps[1:]:
-        c = st.contact
-        assert c.friction
-        assert np.all(c.force >= 0)
-        for gamma, f, g, state in ((gamma_T, c.force_T, c.slip_T, c.state_T),
-                                   (gamma_R, c.force_R, c.slip_R, c.state_R)):
-            if gamma == 0:                   # that law is off: no force
-                assert np.all(f == 0)
-                continue
-            # the bound |f| <= gamma f_N (to round-off)
-            assert np.all(np.linalg.norm(f, axis=1) <= gamma * c.force * (1 + 1e-12) + 1e-300)
-            slip = state == 2
-            if slip.any():
-                # at slipping points |f| = gamma f_N and f points along the slip
-                assert np.allclose(np.linalg.norm(f[slip], axis=1), gamma * c.force[slip],
-                                   rtol=1e-12)
-                gn = np.linalg.norm(g[slip], axis=1)
-                big = gn > 1e-3 * gn.max()
-                cos = (np.sum(f[slip] * g[slip], axis=1)[big]
-                       / (np.linalg.norm(f[slip], axis=1)[big] * gn[big]))
-                assert cos.min() > 1 - 1e-5
-        assert c.dissipation >= 0
+rf = load_demo("rotational_friction")
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +47,7 @@ def test_rotational_friction_saturates_at_gamma_R_FN(rotational):
 
 def test_rotational_scene_obeys_coulomb_at_every_step(rotational):
     res = rotational["result"]
-    _coulomb_checks(res, 0.0, rf.EPS)
+    coulomb_checks(res, 0.0, rf.EPS)
     for st in res.steps[1:]:
         assert st.contact.penetration <= 1e-3 * rf.EPS
 
@@ -124,7 +88,7 @@ def test_dissipated_energy_and_stick_slip_render(rotational, tmp_path):
     assert green.sum() == 0           # no sticking point at the last step
 
 
-pf = _load("plectoneme_friction")
+pf = load_demo("plectoneme_friction")
 
 
 @pytest.fixture(scope="module")
@@ -142,7 +106,7 @@ def test_plectoneme_cycle_with_friction(plectoneme_cycle):
     for r in rec:
         assert r["link"] == pytest.approx(r["turns"], abs=1e-9)
     # Coulomb's law at every converged step, and dissipation >= 0
-    _coulomb_checks(res, 0.3, 0.0)
+    coulomb_checks(res, 0.3, 0.0)
     D = res.dissipated_energy()
     assert np.all(np.diff(D) >= 0) and D[-1] > 0
     for st in res.steps:

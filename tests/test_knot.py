@@ -3,27 +3,16 @@ strands are well apart, the knot is kept (no strand passage) while it is
 pulled and let go, frictionless pulling is reversible, friction makes the
 tightening force exceed the loosening force at the same end distance
 (hysteresis), and Coulomb's law holds at every converged step."""
-import importlib.util
-import pathlib
 
 import os
 
 import numpy as np
 import pytest
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
-TESTS = pathlib.Path(__file__).resolve().parent
+from helpers import coulomb_checks, load_demo
 
 
-def _load(path, name):
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-knot = _load(DEMOS / "knot.py", "knot")
-_coulomb_checks = _load(TESTS / "test_friction_scenes.py", "_fs")._coulomb_checks
+knot = load_demo("knot")
 
 # small size: 48 elements, pulled by 0.42 (21 tube radii) in 6 steps and back
 SMALL = dict(pull=0.42, n_elements=48, n_steps=6)
@@ -119,5 +108,5 @@ def test_friction_makes_tightening_force_exceed_loosening_force(runs):
 @scene
 def test_knot_obeys_coulomb_at_every_step(runs):
     res = runs[GAMMA]["result"]
-    _coulomb_checks(res, GAMMA, 0.0)
+    coulomb_checks(res, GAMMA, 0.0)
     assert sum(w["dissipation"] for w in runs[GAMMA]["rows"]) > 0

@@ -3,20 +3,11 @@ is squeezed at its quarter points until its sides touch, then released
 (load path 0 -> 1 -> 0): contact appears and disappears, the contact law
 holds at every converged step, and the frictionless, elastic rod comes back
 exactly to its reference state (10-60 s)."""
-import importlib.util
-import pathlib
 
 import numpy as np
 import pytest
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
-
-
-def load(name):
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_demo as load
 
 
 demo = load("squeezed_loop")

@@ -7,8 +7,6 @@ threshold, a snap into a loop, a second snap into a plectoneme, and a
 torque plateau while the plectoneme grows.  Pinned figures were measured
 with the demo (docs/twisted_rod.md).  The scene fixture takes 90 s to 4.5
 minutes on a loaded 2-core machine; the rest a few seconds."""
-import importlib.util
-import pathlib
 
 import numpy as np
 import pytest
@@ -17,14 +15,7 @@ from skfem_rod import Rod, Section, geometry
 from skfem_rod.loads import point_loads
 from skfem_rod.relax import clearance_ok
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
-
-
-def load(name):
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_demo as load
 
 
 demo = load("twisted_rod")

@@ -3,20 +3,11 @@ apart) whose apex is pulled along the axis and turned by one turn winds
 into a two-ply with its plies in contact.  Pinned figures were measured
 with the demo (32 elements, legs 0.8, 8 steps; docs/contact-scenes.md);
 about 20-60 s."""
-import importlib.util
-import pathlib
 
 import numpy as np
 import pytest
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
-
-
-def load(name):
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_demo as load
 
 
 demo = load("two_ply")

@@ -17,8 +17,6 @@ Run ``pytest -s tests/test_verification.py`` to see the measured numbers.
 """
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-from scipy.optimize import fsolve
 
 from skfem_rod import Rod, Section, analytic, geometry
 
@@ -199,35 +197,16 @@ def bend_shooting(loads=BEND_LOADS):
     with ``r(0) = 0``, ``R(0) = R0(0)`` and the unknown ``m(0)`` found from
     ``m(L) = 0`` (continuation in the load).  The reference strains of the
     arc are ``v0 = e3`` and ``u0 = e2 / radius`` (``d1`` points to the
-    centre, ``d3' = d1 / radius``).  Nothing of the package is used except
-    the frame at s = 0, taken from :func:`geometry.arc`."""
+    centre, ``d3' = d1 / radius``).  Solved by
+    :func:`skfem_rod.analytic.clamped_rod_shooting` (no finite elements);
+    only the frame at s = 0 is taken from :func:`geometry.arc`."""
     shape = bend_shape()
     C = np.diag([BEND_SECTION[k] for k in ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")])
-    Ci = np.linalg.inv(C)
-    eps0 = np.array([0.0, 0.0, 1.0, 0.0, 1.0 / BEND_RADIUS, 0.0])
     R00 = shape(np.array([0.0]))[1][0]
-
-    def rhs(s, y, F):
-        R, m = y[3:12].reshape(3, 3), y[12:]
-        eps = eps0 + Ci @ np.r_[R.T @ F, R.T @ m]
-        v, u = eps[:3], eps[3:]
-        uhat = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
-        rp = R @ v
-        return np.r_[rp, (R @ uhat).ravel(), -np.cross(rp, F)]
-
-    def shoot(m0, F):
-        sol = solve_ivp(rhs, (0.0, shape.length), np.r_[0, 0, 0, R00.ravel(), m0],
-                        args=(F,), method="DOP853", rtol=1e-12, atol=1e-10)
-        return sol.y[:, -1]
-
-    out, m0 = {}, np.zeros(3)
-    for P in sorted(set((150.0,) + tuple(loads))):
-        F = np.array([0.0, 0.0, P])
-        m0 = fsolve(lambda m: shoot(m, F)[12:], m0, xtol=1e-13)
-        yL = shoot(m0, F)
-        assert np.linalg.norm(yL[12:]) < 1e-6 * P * BEND_RADIUS
-        out[P] = yL[:3]
-    return out
+    P = sorted(set((150.0,) + tuple(loads)))
+    tips = analytic.clamped_rod_shooting(C, [0, 0, 1], [0, 1 / BEND_RADIUS, 0], R00,
+                                         shape.length, [[0.0, 0.0, p] for p in P])
+    return dict(zip(P, tips))
 
 
 def solve_bend(n_elements, n_steps=12):

@@ -1,0 +1,43 @@
+"""Shared test helpers: import a demo script as a module, and check
+Coulomb's law on a solved result."""
+import importlib.util
+import pathlib
+
+import numpy as np
+
+DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
+
+
+def load_demo(name):
+    """``demos/<name>.py`` imported as a module (demos are scripts, not a
+    package)."""
+    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def coulomb_checks(result, gamma_T, gamma_R):
+    """Coulomb's law at every converged step, for every active point."""
+    for st in result.steps[1:]:
+        c = st.contact
+        assert c.friction
+        assert np.all(c.force >= 0)
+        for gamma, f, g, state in ((gamma_T, c.force_T, c.slip_T, c.state_T),
+                                   (gamma_R, c.force_R, c.slip_R, c.state_R)):
+            if gamma == 0:                   # that law is off: no force
+                assert np.all(f == 0)
+                continue
+            # the bound |f| <= gamma f_N (to round-off)
+            assert np.all(np.linalg.norm(f, axis=1) <= gamma * c.force * (1 + 1e-12) + 1e-300)
+            slip = state == 2
+            if slip.any():
+                # at slipping points |f| = gamma f_N and f points along the slip
+                assert np.allclose(np.linalg.norm(f[slip], axis=1), gamma * c.force[slip],
+                                   rtol=1e-12)
+                gn = np.linalg.norm(g[slip], axis=1)
+                big = gn > 1e-3 * gn.max()
+                cos = (np.sum(f[slip] * g[slip], axis=1)[big]
+                       / (np.linalg.norm(f[slip], axis=1)[big] * gn[big]))
+                assert cos.min() > 1 - 1e-5
+        assert c.dissipation >= 0
