@@ -200,7 +200,7 @@ def main(out="output/two_ply", turns=2.0, n_steps=20, render=True, verbose=True,
         res.render(path, radius=0.5 * rod.contact.radius, camera=cam, window_size=window_size,
                    contact_colors="#2ca02c", contact_radius=0.7 * rod.contact.radius,
                    title=f"two-ply: {r['turns']:.1f} turns, {r['contacts']} contact points, "
-                         f"ply angle {r.get('ply_angle_deg', float('nan')):.1f} deg "
+                         f"ply angle {r.get('ply_angle_deg', float('nan')):.1f} deg\n"
                          "(tubes at half the contact radius)")
         pngs.append(path)
     return dict(sol, renders=pngs)

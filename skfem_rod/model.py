@@ -78,6 +78,14 @@ class Rod:
         Number of cubic elements (>= 1).
     n_quad : int
         Gauss points per element for the internal work (default 3).
+    natural : {"reference", "straight"}
+        The rod's stress-free shape: ``"reference"`` (default) ``shape``
+        itself; ``"straight"`` straight and untwisted (unit stretch, no
+        shear, no curvature), so that ``shape`` is only the configuration the
+        solve starts from, e.g. a knot tied in a straight rod.  The solver
+        first finds the equilibrium at load factor 0 from there (with
+        ``snap="relax"`` through the gradient flow when Newton alone does not
+        converge).
 
     Examples
     --------
@@ -94,7 +102,7 @@ class Rod:
     (True, True)
     """
 
-    def __init__(self, shape, section, n_elements, n_quad=3):
+    def __init__(self, shape, section, n_elements, n_quad=3, natural="reference"):
         if not isinstance(shape, Shape):
             raise ValueError("shape must be a skfem_rod.geometry shape "
                              "(straight, arc, helix, curve, polyline), "
@@ -117,7 +125,13 @@ class Rod:
                     "turn by whole turns about the centreline, e.g. geometry.ring(..., "
                     "twist_turns=n) with an integer n)")
         self.C = section.C
+        if natural not in ("reference", "straight"):
+            raise ValueError(f"natural must be 'reference' or 'straight', got {natural!r}")
+        self.natural = natural
         self.eps0 = reference_strains(self.mesh, self.r0, self.R0, self.C)
+        if natural == "straight":                 # unit stretch along d3, nothing else
+            self.eps0 = np.zeros_like(self.eps0)
+            self.eps0[..., 2] = 1.0
         self.supports = {}
         self.point_loads = []
         self.distributed = []

@@ -283,10 +283,16 @@ class Result:
         e, xi = mesh.locate(s)
         st = self.steps[step]
         eps, Rs, r = self._fields(e, xi[:, None], st.r, st.R)
-        eps0 = self._fields(e, xi[:, None], rod.r0, rod.R0)[0]
         xg = np.asarray(mesh.sbasis.X[0], float)                   # Gauss points
         eg, Rg, _ = self._fields(e, np.broadcast_to(xg, (len(s), xg.size)), st.r, st.R)
-        eg0 = self._fields(e, np.broadcast_to(xg, (len(s), xg.size)), rod.r0, rod.R0)[0]
+        if getattr(rod, "natural", "reference") == "straight":     # unit stretch, nothing else
+            eps0 = np.zeros_like(eps)
+            eps0[..., 2] = 1.0
+            eg0 = np.zeros_like(eg)
+            eg0[..., 2] = 1.0
+        else:
+            eps0 = self._fields(e, xi[:, None], rod.r0, rod.R0)[0]
+            eg0 = self._fields(e, np.broadcast_to(xg, (len(s), xg.size)), rod.r0, rod.R0)[0]
         Sg = (eg - eg0) @ rod.C.T                                   # (n, nq, 6)
         ng = np.einsum("nqij,nqj->nqi", Rg, Sg[..., :3])
         mg = np.einsum("nqij,nqj->nqi", Rg, Sg[..., 3:])

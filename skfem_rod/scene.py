@@ -244,6 +244,47 @@ class Matrix6:
         return out
 
 
+#: tolerance of the support ``axes``: largest |cos| between two normalized
+#: axes, and largest difference of the axes of two supports at one node
+AXES_TOL = 1e-6
+
+
+class Axes:
+    """Three local axes of a support (rows), as ``Rod.support_basis`` takes
+    them as the columns of ``Q``: each non-zero (normalized here), mutually
+    orthogonal to :data:`AXES_TOL` and right-handed; returned as the rows
+    of the nearest rotation (exactly orthonormal)."""
+    expected = (f"3 axes [[x, y, z], [x, y, z], [x, y, z]] of finite numbers, not zero "
+                f"(normalized on load), mutually orthogonal (|cos| <= {AXES_TOL:g}) and "
+                f"right-handed (axes[0] x axes[1] = axes[2]): the rows of a rotation matrix")
+
+    def __call__(self, v):
+        items = _seq(v)
+        if len(items) != 3:
+            raise _Bad(f"got {len(items)} item{'s' if len(items) != 1 else ''}, not 3 axes")
+        rows = []
+        for k, a in enumerate(items):
+            try:
+                rows.append(Vector(nonzero=True)(a))
+            except _Bad as bad:
+                raise _Bad(f"axes[{k}] = {_show(a)} is not a non-zero [x, y, z]"
+                           + (f"; {bad.note}" if bad.note else "")) from None
+        A = np.array(rows)
+        A /= np.abs(A).max(axis=1, keepdims=True)      # no overflow in the norm
+        A /= np.linalg.norm(A, axis=1, keepdims=True)
+        for i, j in ((0, 1), (0, 2), (1, 2)):
+            cos = float(A[i] @ A[j])
+            if abs(cos) > AXES_TOL:
+                raise _Bad(f"axes[{i}] and axes[{j}] are not orthogonal: cos = {cos:.3g}, "
+                           f"tolerance {AXES_TOL:g}")
+        det = float(np.linalg.det(A))
+        if det < 0:
+            raise _Bad(f"left-handed: axes[0] x axes[1] . axes[2] = {det:.6g}; reverse "
+                       "one axis (e.g. axes[2] -> -axes[2])")
+        u, _, vt = np.linalg.svd(A)                   # nearest rotation (polar factor)
+        return (u @ vt).tolist()
+
+
 class Where:
     expected = '"start", "end" or an arclength >= 0 at a node'
 
@@ -359,15 +400,20 @@ SECTIONS = {
     },
 }
 
+_AXES = Key(Axes(), None, "local axes the components (and displacement) refer to "
+                         "(Rod.support_basis); default: x, y, z")
 SUPPORTS = {
     "clamp": {},
-    "pin": {"components": Key(Components(), [0, 1, 2], "position components held")},
-    "fix_rotation": {"components": Key(Components(), [0, 1, 2], "spin components held")},
+    "pin": {"components": Key(Components(), [0, 1, 2], "position components held"),
+            "axes": _AXES},
+    "fix_rotation": {"components": Key(Components(), [0, 1, 2], "spin components held"),
+                     "axes": _AXES},
     "prescribe_rotation": {
         "rotation_vector": Key(VECTOR, doc="spatial rotation vector at load factor 1")},
     "prescribe_displacement": {
         "displacement": Key(VECTOR, doc="displacement at load factor 1"),
-        "components": Key(Components(), [0, 1, 2], "components prescribed")},
+        "components": Key(Components(), [0, 1, 2], "components prescribed"),
+        "axes": _AXES},
 }
 SUPPORT_COMMON = {
     "kind": Key(Choice(*SUPPORTS), doc="kind of support"),
@@ -403,12 +449,17 @@ def _contact_keys():
             "mu_T": "tangential friction compliance (default: penalty)",
             "mu_R": "rotational friction compliance (default: penalty / eps^2)",
             "friction_tolerance": "Uzawa tolerance of the friction multipliers "
-                                  "(times gamma f_N)"}
+                                  "(times gamma f_N)",
+            "penalty_growth": "adaptive Uzawa penalty: growth factor where the "
+                              "violation stalls (1: fixed penalty)",
+            "max_penalty_scale": "cap of the adaptive penalty (times the nominal one)"}
     checks = {"radius": POSITIVE, "penalty": POSITIVE, "exclusion": POSITIVE,
               "n_slave": Integer(1, 20), "tolerance": POSITIVE,
               "max_uzawa": Integer(1, 10_000), "margin": Number(0, lo_open=False),
               "gamma_T": Number(0, lo_open=False), "gamma_R": Number(0, lo_open=False),
-              "mu_T": POSITIVE, "mu_R": POSITIVE, "friction_tolerance": POSITIVE}
+              "mu_T": POSITIVE, "mu_R": POSITIVE, "friction_tolerance": POSITIVE,
+              "penalty_growth": Number(1, lo_open=False),
+              "max_penalty_scale": Number(1, lo_open=False)}
     keys = {"enabled": Key(Boolean(), True, "switch self-contact on")}
     keys.update({n: Key(checks[n], d[n], docs[n]) for n in d})
     return keys
@@ -427,6 +478,7 @@ def _solver_keys():
         "max_rotation_step": POSITIVE, "grow": Number(1, lo_open=False),
         "snap": Choice("cut", "relax"), "stability": Boolean(), "relax_tol": POSITIVE,
         "relax_dt": POSITIVE, "max_flow_steps": Integer(1, 10_000_000),
+        "predictor": Choice("none", "secant"), "clearance_cap": Boolean(),
     }
     keys = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
             "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times")}
@@ -706,6 +758,22 @@ def _claim(claims, node, comps, who, prescribed):
         claims[(node, comp)] = (who, prescribed)
 
 
+def _same_basis(bases, node, axes, who):
+    """The supports of one node share one basis (``Rod.support_basis`` is
+    per node): ``axes`` of support ``who`` must equal those of the supports
+    of ``node`` seen before (None: the spatial axes)."""
+    prev = bases.setdefault(node, (who, axes))
+    a, b = (np.eye(3) if x is None else np.asarray(x) for x in (axes, prev[1]))
+    if np.abs(a - b).max() > AXES_TOL:
+        def say(x):
+            return ("no axes (x, y, z)" if x is None
+                    else f"axes = {_show(np.round(np.asarray(x), 9).tolist(), 120)}")
+        raise SceneError([
+            f"{who} has {say(axes)} but {prev[0]} at the same node {node} has "
+            f"{say(prev[1])}: the pin, fix_rotation and prescribe_displacement supports "
+            "of one node share one basis; give them the same axes (or none)"])
+
+
 def _build(d):
     from .model import Rod
     shape = _shape(d["rod"]["geometry"])
@@ -723,7 +791,7 @@ def _build(d):
                               f"[0, {rod.length:g}] (the rod length)"])
         return _call(path, ["where"], rod.node, where)
 
-    claims = {}
+    claims, bases = {}, {}
     for k, sup in enumerate(d["support"]):
         path, kind = f"support[{k}]", sup["kind"]
         n = node(path, sup["where"])
@@ -734,7 +802,12 @@ def _build(d):
         elif kind == "fix_rotation":
             comps = [3 + i for i in comps]
         _claim(claims, n, comps, who, kind.startswith("prescribe"))
-        args = {k: v for k, v in sup.items() if k not in ("kind", "where")}
+        args = {k: v for k, v in sup.items() if k not in ("kind", "where", "axes")}
+        if "axes" in sup:                  # pin, fix_rotation, prescribe_displacement
+            _same_basis(bases, n, sup["axes"], who)
+            if sup["axes"] is not None:
+                _call(path, ["axes"], rod.support_basis, sup["where"],
+                      np.array(sup["axes"]).T)
         _call(path, list(args), getattr(rod, kind), sup["where"], **args)
     for k, load in enumerate(d["load"]):
         path, kind = f"load[{k}]", load["kind"]

@@ -26,6 +26,7 @@ import scipy.sparse.linalg as spla
 from .assembly import internal_work, shape_operator
 from .kinematics import ElementRotationError
 from .loads import distributed_vector, point_loads
+from .relax import clearance_ok
 from .results import Result
 from .rotations import expm
 
@@ -67,6 +68,22 @@ class SolverOptions:
     relax_dt : first pseudo-time step of the flow (metric of
         :func:`skfem_rod.relax.metric`).
     max_flow_steps : accepted proximal steps per flow before giving up.
+    predictor : start of each step's Newton iterations: ``"none"`` (default)
+        the last converged state; ``"secant"`` the last converged state
+        moved along the secant of the last two (scaled to the new load
+        increment; supported dofs stay where the load path puts them).  On a
+        smooth path the secant start saves most iterations and keeps Newton
+        in the basin of the equilibrium it follows (a loose knot, whose
+        loops swing freely, diverges from the plain start).
+    clearance_cap : with contact on (default true), halve a Newton update
+        (and the secant predictor) while it moves two non-neighbouring nodes
+        relative to each other by more than half their clearance
+        (:func:`skfem_rod.relax.clearance_ok`), so that no iterate can carry
+        a strand through another.  Without it, the first update of a step
+        that brings strands into contact (no contact stiffness in the
+        tangent yet) can put one strand on the far side of another, and the
+        solve converges there: a hairpin leg pressed by a large force ends
+        up through the other leg (``tests/test_predictor_cap.py``).
     """
     rtol: float = 1e-10
     increment_tol: float = 1e-11
@@ -83,10 +100,16 @@ class SolverOptions:
     relax_tol: float = 1e-8
     relax_dt: float = 1.0
     max_flow_steps: int = 20000
+    predictor: str = "none"
+    clearance_cap: bool = True
 
     def __post_init__(self):
         if self.snap not in ("cut", "relax"):
             raise ValueError(f"snap must be 'cut' or 'relax', got {self.snap!r}")
+        if self.predictor not in ("none", "secant"):
+            raise ValueError(f"predictor must be 'none' or 'secant', got {self.predictor!r}")
+        if not isinstance(self.clearance_cap, bool):
+            raise ValueError(f"clearance_cap must be true or false, got {self.clearance_cap!r}")
         if not isinstance(self.stability, bool):
             raise ValueError(f"stability must be true or false, got {self.stability!r}")
         for name in ("rtol", "increment_tol", "min_step", "max_rotation_step",
@@ -140,6 +163,12 @@ class _System:
             from .contact.search import slave_points
             self.slaves = slave_points(rod.mesh, self.contact.n_slave)
             self.multipliers = np.zeros(self.slaves.s.size)
+            #: per-slave penalty factor of the adaptive Uzawa loop (``_step``):
+            #: the normal compliance at slave ``i`` is ``penalty / scale[i]``
+            self.penalty_scale = np.ones(self.slaves.s.size)
+            #: the same for the friction compliances ``mu_T``, ``mu_R`` (one
+            #: factor for all points)
+            self.friction_scale = 1.0
             self.pairs = None
             #: friction (gamma_T or gamma_R > 0 only): multipliers per slave
             #: and the last converged state the slips are measured from
@@ -156,12 +185,14 @@ class _System:
         from .contact.search import search
         from .contact.assembly import contact_work
         c = self.contact
-        reach = 2 * c.radius + c.penalty * self.multipliers.max(initial=0.0) + c.margin
+        mu = c.penalty / self.penalty_scale              # per slave (adaptive Uzawa)
+        reach = 2 * c.radius + (mu * self.multipliers).max(initial=0.0) + c.margin
         t0 = time.perf_counter()
         pairs = search(self.mesh, r, self.slaves, reach, c.exclusion)
         t1 = time.perf_counter()
+        mu = mu[pairs.slave]
         energy, force, K, fN = contact_work(self.mesh, r, pairs, self.multipliers,
-                                            c.penalty, c.radius, tangent)
+                                            mu, c.radius, tangent)
         t2 = time.perf_counter()
         self.timers["contact_search"] += t1 - t0
         self.timers["contact_assembly"] += t2 - t1
@@ -169,11 +200,13 @@ class _System:
             from .contact.friction_assembly import friction_work
             r_n, R_n = self.converged_state
             ff, Kf, out = friction_work(self.mesh, r, R, r_n, R_n, pairs, self.multipliers,
-                                        c.penalty, c.radius, self.lam_T, self.lam_R,
-                                        c.gamma_T, c.gamma_R, c.mu_T, c.mu_R, tangent)
+                                        mu, c.radius, self.lam_T, self.lam_R,
+                                        c.gamma_T, c.gamma_R, c.mu_T / self.friction_scale,
+                                        c.mu_R / self.friction_scale, tangent,
+                                        K_normal=K)       # Kf includes K
             force = force + ff
             if tangent:
-                K = K + Kf
+                K = Kf
             self.friction_output = out
             self.timers["friction_assembly"] += time.perf_counter() - t2
         return pairs, energy, force, K, fN
@@ -212,21 +245,24 @@ class _System:
         return res, K, f_ext, iw
 
     def save_multipliers(self):
-        """Copy of the contact multipliers (normal, and friction when on);
-        None without contact."""
+        """Copy of the contact multipliers (normal, and friction when on) and
+        of the adaptive penalty factors (last item); None without contact."""
         if self.contact is None:
             return None
+        scales = (self.penalty_scale.copy(), self.friction_scale)
         if self.friction:
-            return self.multipliers.copy(), self.lam_T.copy(), self.lam_R.copy()
-        return (self.multipliers.copy(),)
+            return self.multipliers.copy(), self.lam_T.copy(), self.lam_R.copy(), scales
+        return self.multipliers.copy(), scales
 
     def restore_multipliers(self, saved):
-        """Undo the multiplier updates since :meth:`save_multipliers`."""
+        """Undo the multiplier (and penalty factor) updates since
+        :meth:`save_multipliers`."""
         if saved is None:
             return
         self.multipliers = saved[0].copy()
         if self.friction:
             self.lam_T, self.lam_R = saved[1].copy(), saved[2].copy()
+        self.penalty_scale, self.friction_scale = saved[-1][0].copy(), saved[-1][1]
 
     def to_spatial(self, dy):
         """A dof vector (update, mode, residual) from the supports' local
@@ -327,8 +363,13 @@ def newton(system, r, R, lam, prescribed, opts):
         if opts.line_search:
             spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
             alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+        cap = opts.clearance_cap and system.contact is not None
         for _ in range(opts.max_backtracks + 1):
             r_t, R_t = system.update(r, R, dy, alpha)
+            if cap and not clearance_ok(system.rod, r, r_t):
+                why = "the update would carry a strand through another"
+                alpha *= 0.5
+                continue
             try:
                 out = system.evaluate(r_t, R_t, lam)
             except ElementRotationError as err:
@@ -385,9 +426,20 @@ def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
     system = _System(rod)
     result = Result(rod)
     r, R = rod.r0.copy(), rod.R0.copy()
-    ok, r, R, info = newton(system, r, R, 0.0, np.zeros(rod.mesh.n_dofs), opts)
+    zero = np.zeros(rod.mesh.n_dofs)
+    stressed = getattr(rod, "natural", "reference") == "straight"
+    if stressed:            # a stressed start: an equilibrium solve, with Uzawa
+        ok, r, R, info = _step(system, r, R, 0.0, zero, opts)
+    else:                   # the stress-free reference: a check (no multipliers)
+        ok, r, R, info = newton(system, r, R, 0.0, zero, opts)
+    if not ok and stressed and opts.snap == "relax":
+        from .relax import flow
+        ok, r, R, info = _step(system, rod.r0.copy(), rod.R0.copy(), 0.0, zero, opts,
+                               inner=flow)
     if not ok:
-        result.finish(False, f"the unloaded reference is not in equilibrium: {info['reason']}")
+        start = "reference" if rod.natural == "reference" else "initial shape"
+        result.finish(False, f"no equilibrium at load factor 0 from the {start}: "
+                             f"{info['reason']}")
         return result
     if opts.stability:
         info["lowest_eigenvalue"] = _lowest_mode(system, r, R, 0.0)[0]
@@ -403,6 +455,7 @@ def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
     if rot > 0:
         nominal = min(nominal, opts.max_rotation_step / (rot * slope))
     t, dt, streak = 0.0, nominal, 0
+    prev = None                  # (load factor, r, R) of the step before the last
     while t < 1.0 - 1e-14:
         nxt = times[times > t + 1e-14][0]            # do not step over a turning point
         step = min(dt, nxt - t)
@@ -410,7 +463,10 @@ def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
         lam, lam_new = lam_of(t), lam_of(t_new)
         flows = system.calls["flow_steps"]
         mult = system.save_multipliers()
-        ok, r_new, R_new, info = _step(system, r, R, lam_new,
+        r_p, R_p = r, R
+        if opts.predictor == "secant" and prev is not None and lam != prev[0]:
+            r_p, R_p = _secant(system, r, R, prev, (lam_new - lam) / (lam - prev[0]), opts)
+        ok, r_new, R_new, info = _step(system, r_p, R_p, lam_new,
                                        _prescribed_increment(rod, lam_new - lam), opts)
         if opts.snap == "relax" or opts.stability:
             ok, r_new, R_new, info = _snap(system, r, R, lam, lam_new, ok, r_new, R_new,
@@ -418,6 +474,7 @@ def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
             info["flow_steps"] = system.calls["flow_steps"] - flows
         if ok:
             t = t_new
+            prev = (lam, r, R)
             r, R = r_new, R_new
             if system.contact is not None and system.friction:
                 system.converged_state = (r.copy(), R.copy())
@@ -450,6 +507,34 @@ def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
     result.finish(True, f"converged: {len(result.steps) - 1} steps to the end of the "
                   f"load path (load factor {lam_of(1.0):g})" + note)
     return result
+
+
+def _secant(system, r, R, prev, ratio, opts):
+    """Secant predictor: ``(r, R)`` moved by ``ratio`` times the increment
+    from ``prev = (lam, r, R)`` to it, with supported dofs left alone (the
+    prescribed increment moves them), spins capped at
+    ``opts.max_spin_update`` and, with ``opts.clearance_cap``, halved until
+    no strand can pass through another (up to ``opts.max_backtracks``
+    halvings, else no prediction)."""
+    from .rotations import logm
+    _, r0, R0 = prev
+    d = np.empty((r.shape[0], 6))
+    d[:, :3] = r - r0
+    d[:, 3:] = logm(R @ np.swapaxes(R0, 1, 2))
+    d *= ratio
+    dy = d.ravel()
+    if system.T is not None:
+        dy = system.T.T @ dy
+    dy[system.fixed] = 0.0
+    spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max(initial=0.0)
+    alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+    for _ in range(opts.max_backtracks + 1):
+        r_p, R_p = system.update(r, R, dy, alpha)
+        if not (opts.clearance_cap and system.contact is not None) \
+                or clearance_ok(system.rod, r, r_p):
+            return r_p, R_p
+        alpha *= 0.5
+    return r, R
 
 
 def _lowest_mode(system, r, R, lam):
@@ -513,8 +598,16 @@ def _step(system, r, R, lam, prescribed, opts, inner=None):
     """One load step: Newton (or ``inner``, e.g. the gradient flow of
     :func:`skfem_rod.relax.flow`), wrapped in Uzawa updates of the contact
     multipliers when contact is on (until the largest penetration, and the
-    largest open gap where a force acts, are below ``tolerance * eps``, or
-    ``max_uzawa`` updates were made)."""
+    largest open gap where a force acts, are below ``tolerance * eps``, and
+    with friction the friction multipliers moved by less than
+    ``friction_tolerance * gamma f_N``, or ``max_uzawa`` updates were made).
+
+    The penalty adapts as in the method of multipliers (:func:`_adapt_penalty`):
+    where a point's violation did not drop by a factor 4 over an update, its
+    penalty stiffness grows by ``penalty_growth`` for the rest of the step
+    (each step starts at the nominal penalty).  The converged answer is that
+    of the fixed penalty to the tolerances; only the path to it changes.
+    """
     inner = newton if inner is None else inner
     c = system.contact
     if c is None:
@@ -522,6 +615,8 @@ def _step(system, r, R, lam, prescribed, opts, inner=None):
     from .contact.law import gap, uzawa_update
     saved = system.save_multipliers()
     newton_its, uzawa = 0, 0
+    last = np.full(system.multipliers.size, np.inf)     # violations of the last pass
+    last_moved = np.inf
     while True:
         ok, r, R, info = inner(system, r, R, lam, prescribed, opts)
         newton_its += info["iterations"]
@@ -541,6 +636,7 @@ def _step(system, r, R, lam, prescribed, opts, inner=None):
             info["friction_moved"] = moved
             done = done and moved <= c.friction_tolerance
         if done or uzawa == c.max_uzawa:
+            scale = float(system.penalty_scale.max(initial=1.0))
             if not done:
                 info["uzawa_note"] = (
                     f"Uzawa stopped after {uzawa} updates with penetration {pen:.3e} "
@@ -548,16 +644,89 @@ def _step(system, r, R, lam, prescribed, opts, inner=None):
                     f"(tolerance {c.tolerance * c.radius:.3e})"
                     + (f" and friction multipliers moving by {info['friction_moved']:.3e} "
                        f"gamma f_N (tolerance {c.friction_tolerance:g})"
-                       if system.friction else ""))
+                       if system.friction else "")
+                    + (f"; penalty raised up to {scale:.3g} times" if scale > 1 else ""))
+            # back to the nominal penalty: at the converged multipliers the
+            # state is an equilibrium for any penalty (to the tolerances), and
+            # the stability check and the next step see the nominal tangent
+            system.penalty_scale = np.ones_like(system.penalty_scale)
+            system.friction_scale = 1.0
             info.update(uzawa=uzawa, newton_total=newton_its, penetration=pen,
-                        uzawa_converged=done)
+                        uzawa_converged=done, penalty_scale=scale)
             return True, r, R, info
+        mu = c.penalty / system.penalty_scale[pairs.slave]
         lam_new = np.zeros_like(system.multipliers)
-        lam_new[pairs.slave] = uzawa_update(d, system.multipliers[pairs.slave], c.penalty)
+        lam_new[pairs.slave] = uzawa_update(d, system.multipliers[pairs.slave], mu)
+        if c.penalty_growth > 1:
+            if system.friction:
+                last_moved = _adapt_friction_penalty(system, fN, lam_new, moved, last_moved)
+            last = _adapt_penalty(system, pairs, d, fN, lam_new, last)
         system.multipliers = lam_new
         if system.friction:
             system.lam_T, system.lam_R = lam_T, lam_R
         uzawa += 1
+
+
+#: the adaptive penalty raises the penalty at a point whose violation did
+#: not drop below this fraction of the last one (Bertsekas' 0.25)
+PENALTY_DROP = 0.25
+
+
+def _adapt_penalty(system, pairs, d, fN, lam_new, last):
+    """The penalty update of the method of multipliers (Bertsekas,
+    *Constrained Optimization and Lagrange Multiplier Methods*, 1982,
+    sec. 2.2; Nocedal & Wright, *Numerical Optimization*, framework 17.3),
+    per slave point, after the Uzawa update ``lambda -> lam_new``.
+
+    Uzawa converges linearly, by the factor ``k / (k + 1/mu)`` per update
+    where the structure's stiffness ``k`` against the point's gap is large
+    compared with the penalty stiffness ``1/mu`` (a line contact whose force
+    redistributes between neighbouring points: factors 0.97-0.99 measured
+    in the plectoneme, docs/friction.md).  The violation of a point is
+    ``|d|`` where it penetrates or carries a force across an open gap; a
+    point still short of its tolerance -- ``|d| > tolerance eps``, or, with
+    friction, a multiplier change above ``friction_tolerance max f_N`` (the
+    friction bound ``gamma f_N`` moves with it) -- whose violation did not
+    drop below :data:`PENALTY_DROP` times the last one gets its penalty
+    stiffness multiplied by ``penalty_growth``, up to ``max_penalty_scale``
+    times the nominal one.  Returns the violations (``inf`` where no
+    contact), the ``last`` of the next call."""
+    c = system.contact
+    n = system.multipliers.size
+    act = (d > 0) | (fN > 0)
+    viol = np.full(n, np.inf)
+    viol[pairs.slave[act]] = np.abs(d[act])
+    short = np.isfinite(viol) & (viol > c.tolerance * c.radius)
+    if system.friction and fN.size:
+        short |= np.isfinite(viol) & (np.abs(lam_new - system.multipliers)
+                                      > c.friction_tolerance * fN.max())
+    grow = short & (viol > PENALTY_DROP * last)
+    system.penalty_scale = np.where(
+        grow, np.minimum(system.penalty_scale * c.penalty_growth, c.max_penalty_scale),
+        system.penalty_scale)
+    return viol
+
+
+def _adapt_friction_penalty(system, fN, lam_new, moved, last):
+    """The same rule for the friction compliances, with one factor for all
+    points (the friction assembler takes scalar ``mu_T``, ``mu_R``): the
+    friction stiffness grows by ``penalty_growth`` when the friction
+    multipliers still move by more than ``friction_tolerance`` (relative to
+    ``gamma max f_N``), their movement did not drop below
+    :data:`PENALTY_DROP` times the last, and it is friction's own: more than
+    twice what the change of the Coulomb bound ``gamma f_N`` explains (the
+    normal multipliers' change relative to ``max f_N``; that part is left to
+    the normal penalty).  Sticking points converge by the factor
+    ``k / (k + 1/mu)`` per update, as the normal ones (0.998 measured in the
+    rotational-friction scene with a soft normal penalty).  Returns the
+    movement, the ``last`` of the next call."""
+    c = system.contact
+    normal = (float(np.abs(lam_new - system.multipliers).max(initial=0.0)) / fN.max()
+              if fN.size else 0.0)
+    if moved > c.friction_tolerance and moved > PENALTY_DROP * last and moved > 2 * normal:
+        system.friction_scale = min(system.friction_scale * c.penalty_growth,
+                                    c.max_penalty_scale)
+    return moved
 
 
 def _friction_uzawa(system, out):

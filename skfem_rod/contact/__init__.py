@@ -39,6 +39,16 @@ class ContactOptions:
     friction_tolerance : Uzawa also iterates until every friction
         multiplier moved by less than ``friction_tolerance * gamma f_N``
         (largest over the points); default 1e-3.
+    penalty_growth : adaptive penalty of the Uzawa loop (the method of
+        multipliers' penalty update, ``solver._adapt_penalty``): at a point
+        still short of its tolerance whose violation did not drop by a factor
+        4 over an update, the penalty stiffness ``1 / mu_N`` is multiplied by
+        ``penalty_growth`` for the rest of the load step (every step starts
+        at the nominal penalty); default 4; 1 keeps the penalty fixed.
+        The converged answer is the same to the tolerances; only the number
+        of updates changes.
+    max_penalty_scale : cap of that growth, as a multiple of the nominal
+        penalty stiffness; default 1000.
     """
     radius: float
     penalty: float
@@ -52,6 +62,8 @@ class ContactOptions:
     mu_T: float = None
     mu_R: float = None
     friction_tolerance: float = 1e-3
+    penalty_growth: float = 4.0
+    max_penalty_scale: float = 1e3
 
     @property
     def friction(self):
@@ -81,6 +93,11 @@ class ContactOptions:
             self.mu_T = self.penalty
         if self.mu_R is None:
             self.mu_R = self.penalty / self.radius ** 2
+        for name in ("penalty_growth", "max_penalty_scale"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
+                                           and np.isfinite(v) and v >= 1):
+                raise ValueError(f"contact {name} must be a finite number >= 1, got {v!r}")
         for name in ("mu_T", "mu_R", "friction_tolerance"):
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))

@@ -50,9 +50,23 @@ The lever arm gives each section the couple ``-rho N x f_T``.
 The tangent is the exact derivative of that residual: through ``f``
 (``df/dg``, ``df/df_N`` of the law), through the normal ``N``, through the
 master coordinate ``xi`` (``Delta xi`` of eq. 6.5, guarded as in
-:mod:`.assembly`) and through the moving master shape functions.  Each pair
-gives a dense 48 x 48 block over the positions and spins of its 8 nodes; all
-pairs are evaluated at once and scattered in one COO -> CSC conversion.
+:mod:`.assembly`) and through the moving master shape functions.
+
+Assembly.  Each pair gives a dense 48 x 48 block over the positions and
+spins of its 8 nodes, but of low rank in the nodes: its rows and columns
+are shape-function weights (``N_s`` on the slave's nodes, ``N_m`` and
+``N'_m`` on the master's: three "modes") times 6 dofs, and the spin
+columns of node ``k`` carry ``T^-1(phi_k)``.  So the block is
+``U C U^T`` with ``U`` (8 nodes x 3 modes) and a core ``C`` of 18 x 18
+numbers per pair; every linearized quantity is computed on the reduced
+columns (3 x 18 per pair instead of 3 x 48).  The pairs of one element pair
+share their 8 nodes: the columns are expanded pair by pair (with
+``T^-1``), the rows by one matrix product per element pair, batched over
+the element pairs with the same number of pairs; the element-pair blocks
+are summed into the CSC arrays by one ``bincount`` over a cached pattern
+(kept while the element pairs in contact do not change, as in
+:mod:`.assembly`), into which the normal contact tangent can be added
+(``K_normal``) instead of a sparse sum.
 """
 from dataclasses import dataclass
 
@@ -79,41 +93,27 @@ class FrictionOutput:
     fN: np.ndarray           # (m,) normal force
 
 
-def _pos(coef):
-    """Operator ``(m, 3, 48)`` that takes ``sum_k coef_k delta r_k`` over the
-    8 nodes of a pair (local dof ``6 k + c``)."""
-    m = coef.shape[0]
-    op = np.zeros((m, 3, 8, 6))
-    for c in range(3):
-        op[:, c, :, c] = coef
-    return op.reshape(m, 3, 48)
+# Reduced operators.  Every linearized quantity of a pair (a row of its
+# tangent) is a combination of the nodal variations of its 8 nodes with
+# shape-function weights of three kinds ("modes"): N_s on the slave's
+# nodes, N_m and N'_m (the moving master point) on the master's.  It is
+# kept as a (3, 18) matrix: column ``3 c + beta`` for the dof ``c`` (0-2
+# position, 3-5 spin) and the mode ``beta`` (0: N_s, 1: N_m, 2: N'_m).  The
+# spins enter through ``T^-1(phi_k) delta w_k``, node by node: that factor
+# is applied when the columns are expanded to the nodes.
+_S, _M, _D = 0, 1, 2
 
 
-def _spin(coef, mats=None):
-    """Operator ``(m, 3, 48)``: ``sum_k coef_k M_k delta w_k`` (``M = I`` if
-    ``mats`` is None; ``mats`` is ``(m, 8, 3, 3)``)."""
-    m = coef.shape[0]
-    op = np.zeros((m, 3, 8, 6))
-    if mats is None:
-        for c in range(3):
-            op[:, c, :, 3 + c] = coef
-    else:
-        op[:, :, :, 3:] = np.einsum("mk,mkab->makb", coef, mats)
-    return op.reshape(m, 3, 48)
+def _mode(*parts):
+    op = np.zeros((3, 18))
+    for beta, dof, sign in parts:
+        op[np.arange(3), 3 * (dof + np.arange(3)) + beta] = sign
+    return op
 
 
-def _vec(coef, v, spin=False):
-    """Vector ``(m, 48)`` with ``coef_k v`` on the position (or spin) dofs
-    of node ``k``."""
-    m = coef.shape[0]
-    out = np.zeros((m, 8, 6))
-    off = 3 if spin else 0
-    out[:, :, off:off + 3] = coef[:, :, None] * v[:, None, :]
-    return out.reshape(m, 48)
-
-
-#: pairs per chunk of the tangent blocks (18 KB each): a working set in cache
-_CHUNK = 256
+_XREL = _mode((_S, 0, 1.0), (_M, 0, -1.0))    # delta(x - y), xi held
+_PHIS = _mode((_S, 3, 1.0))                   # spin variation at the slave point
+_PHIM = _mode((_M, 3, 1.0))                   # ... at the master point, xi held
 
 
 def _mm(A, B):
@@ -121,57 +121,70 @@ def _mm(A, B):
     return np.matmul(A, B)
 
 
-def scatter_node_blocks(nodes, blocks, n_nodes, b, layout="IaJc"):
-    """Sum per-pair node blocks into a CSC matrix without a COO sort.
+_PATTERN_CACHE = {}
 
-    ``nodes`` ``(m, k)`` global nodes of each pair, ``blocks``
-    ``(m, k, b, k, b)`` (``layout="IaJc"``) or ``(m, k, k, b, b)``
-    (``layout="IJac"``): block ``(I, J)`` couples the ``b`` dofs
-    ``b * nodes[I] + (0..b-1)`` (rows) with those of ``nodes[J]``
-    (columns); the global dof of node ``p``, component ``c`` is ``6 p + c``
-    (``b = 6``: all dofs of a node).  Blocks with the same (row node,
-    column node) are summed (``np.bincount``) and written straight into the
-    CSC arrays, rows ascending in every column."""
-    m, k = nodes.shape
-    n = 6 * n_nodes
-    if m == 0:
-        return sp.csc_matrix((n, n))
-    bkey = (nodes[:, None, :] * n_nodes + nodes[:, :, None]).ravel()   # (col node, row node)
+
+def _pattern(mesh, ge, gnodes):
+    """CSC structure (``nnz, pos, indices, indptr``) of the friction tangent
+    of the element pairs ``ge`` (keys ``lo * n_elements + hi``, in the order
+    of the blocks) with nodes ``gnodes`` ``(ng, 8)``; ``pos``: the data
+    position of every entry ``(part, g, J, c, a, I)`` of the element-pair
+    blocks (row dof ``6 I + a``, column ``6 J + 3 part + c``).  The last
+    pattern is cached: the element pairs in contact seldom change between
+    Newton iterations."""
+    c = _PATTERN_CACHE
+    if (c.get("nodes") is mesh.nodes and c["ge"].shape == ge.shape
+            and np.array_equal(c["ge"], ge)):
+        return c["out"]
+    nn, n = mesh.n_nodes, mesh.n_dofs
+    ng = ge.size
+    bkey = (gnodes[:, :, None] * nn + gnodes[:, None, :]).ravel()   # (g, J, I): col, row node
     ukey, inv = np.unique(bkey, return_inverse=True)
-    nb = ukey.size
-    bcol, brow = ukey // n_nodes, ukey % n_nodes
-    per_node = np.bincount(bcol, minlength=n_nodes)
-    counts = np.zeros((n_nodes, 6), dtype=np.int64)
-    counts[:, :b] = b * per_node[:, None]
-    indptr = np.r_[0, np.cumsum(counts.ravel())]
+    bcol, brow = np.divmod(ukey, nn)
+    # CSC: the 6 columns of node J hold the rows 6 I + a of its blocks,
+    # I ascending; every column of a node has the same rows
+    per_node = np.bincount(bcol, minlength=nn)
+    indptr = np.r_[0, np.cumsum(np.repeat(6 * per_node, 6))]
     first = np.r_[0, np.cumsum(per_node)][:-1]
-    within = b * (np.arange(nb) - first[bcol])
-    ar = np.arange(b)
-    pos = (indptr[6 * bcol[:, None, None] + ar[None, None, :]]
-           + within[:, None, None] + ar[None, :, None])                     # (nb, row, col)
+    within = 6 * (np.arange(ukey.size) - first[bcol])
     nnz = int(indptr[-1])
-    # the CSC position of every entry of every block, built in the layout of
-    # ``blocks`` (no transpose of the data): column dof 6 J + c, row 6 I + a
-    if layout == "IaJc":
-        wb = within[inv.reshape(m, k, k)]                                   # (m, I, J)
-        idx = (indptr[6 * nodes[:, None, None, :, None] + ar[None, None, None, None, :]]
-               + wb[:, :, None, :, None] + ar[None, None, :, None, None])
-        data = np.bincount(idx.ravel(), weights=blocks.ravel(), minlength=nnz)
-    else:
-        # whole blocks summed by their (row node, column node): one sparse
-        # (unique block x block) product, then written at the blocks' places
-        S = sp.csr_matrix((np.ones(m * k * k), (inv.ravel(), np.arange(m * k * k))),
-                          shape=(nb, m * k * k))
-        data = np.empty(nnz)
-        data[pos.ravel()] = (S @ blocks.reshape(m * k * k, b * b)).ravel()
-    indices = np.empty(nnz, dtype=np.int32 if nnz < 2**31 else np.int64)
-    indices[pos.ravel()] = np.broadcast_to(6 * brow[:, None, None] + ar[None, :, None],
-                                           pos.shape).ravel()
-    return sp.csc_matrix((data, indices, indptr.astype(indices.dtype)), shape=(n, n))
+    itype = np.int32 if nnz < 2**31 and n < 2**31 else np.int64
+    col = indptr[:-1][6 * gnodes[:, :, None] + np.arange(6)]             # (g, J, part c)
+    col = col.reshape(ng, 8, 2, 3).transpose(2, 0, 1, 3)[..., None, None]
+    pos = ((col + np.arange(6)[:, None])
+           + within[inv].reshape(ng, 8, 8)[:, :, None, None, :]).ravel()
+    # column 6 J + c: rows 6 brow + a of the blocks first[J]... of node J
+    rows = (6 * brow[:, None] + np.arange(6)).ravel()
+    shift = 6 * first[np.arange(6 * nn) // 6] - indptr[:-1]
+    indices = rows[np.arange(nnz) + np.repeat(shift, np.diff(indptr))].astype(itype)
+    out = (nnz, pos, indices, indptr.astype(itype))
+    c.clear()
+    c.update(nodes=mesh.nodes, ge=ge.copy(), out=out)
+    return out
+
+
+def _normal_positions(K_normal, indices, indptr, n):
+    """Data positions, in the friction tangent (``indices``, ``indptr``),
+    of the entries of the CSC matrix ``K_normal`` (the normal contact
+    tangent of the same pairs, whose node blocks are among the friction's),
+    or None if its pattern is not inside (or not canonical).  Cached with
+    the pattern."""
+    c = _PATTERN_CACHE.get("normal")
+    if (c is not None and c[0].shape == K_normal.indptr.shape
+            and c[1].shape == K_normal.indices.shape
+            and np.array_equal(c[0], K_normal.indptr) and np.array_equal(c[1], K_normal.indices)):
+        return c[2]
+    key_f = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)) * n + indices
+    key_n = np.repeat(np.arange(n, dtype=np.int64), np.diff(K_normal.indptr)) * n + K_normal.indices
+    where = np.minimum(np.searchsorted(key_f, key_n), key_f.size - 1)
+    if not (np.all(np.diff(key_n) > 0) and np.array_equal(key_f[where], key_n)):
+        where = None
+    _PATTERN_CACHE["normal"] = (K_normal.indptr.copy(), K_normal.indices.copy(), where)
+    return where
 
 
 def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R,
-                  gamma_T, gamma_R, mu_T, mu_R, tangent=True):
+                  gamma_T, gamma_R, mu_T, mu_R, tangent=True, K_normal=None):
     """Residual ``(n_dofs,)``, tangent (CSC or None) and :class:`FrictionOutput`
     of the frictional contact work of ``pairs`` (from :func:`.search.search`
     at ``r``).
@@ -180,8 +193,15 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     ``lam_N`` ``(n_slaves,)``, ``lam_T``, ``lam_R`` ``(n_slaves, 3)``: the
     multipliers; ``mu_*`` the compliances, ``gamma_*`` the coefficients
     (``gamma_R`` a length).  Pairs with ``f_N = 0`` carry no friction.
+    ``K_normal`` (optional, CSC): a matrix added to the returned tangent,
+    the normal contact tangent of the same pairs (from
+    :func:`.assembly.contact_work`): its entries are added into the
+    friction tangent's arrays, which hold its pattern, instead of a sparse
+    sum.
     """
     n = mesh.n_dofs
+    if K_normal is not None and K_normal.shape != (n, n):
+        raise ValueError(f"K_normal must be an ({n}, {n}) matrix, got shape {K_normal.shape}")
     d = gap(pairs.distance, radius)
     fN_all, dfN_all = normal_force(d, lam_N[pairs.slave], mu_N)
     idx = np.flatnonzero(fN_all > 0)
@@ -189,7 +209,9 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     if m == 0:
         z = np.zeros((0, 3))
         out = FrictionOutput(idx, idx, z, z, z, z, np.zeros(0, int), np.zeros(0, int), np.zeros(0))
-        return np.zeros(n), (sp.csc_matrix((n, n)) if tangent else None), out
+        if not tangent:
+            return np.zeros(n), None, out
+        return np.zeros(n), (sp.csc_matrix((n, n)) if K_normal is None else K_normal), out
     sl, ve, xs, me, xm = (pairs.slave[idx], pairs.s_elem[idx], pairs.s_xi[idx],
                           pairs.m_elem[idx], pairs.m_xi[idx])
     w, l, Nv = pairs.weight[idx], pairs.distance[idx], pairs.normal[idx]
@@ -198,11 +220,6 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     nodes = np.concatenate([mesh.nodes[ve], mesh.nodes[me]], axis=1)      # (m, 8)
     Ns = shape_functions(xs)[0].T                                        # (m, 4)
     Nm, dNm, d2Nm = (a.T for a in shape_functions(xm))
-    zero = np.zeros_like(Ns)
-    c_rel = np.concatenate([Ns, -Nm], axis=1)        # delta(x - y), xi held
-    c_s = np.concatenate([Ns, zero], axis=1)
-    c_m = np.concatenate([zero, Nm], axis=1)
-    c_dm = np.concatenate([zero, dNm], axis=1)
 
     # nodal increments of the step
     du = r - r_n                                                         # (nn, 3)
@@ -220,7 +237,8 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     P = np.eye(3) - Nv[:, :, None] * Nv[:, None, :]
     phi_sum = phi_s + phi_m
     rho = 0.5 * l                      # lever arm: centreline -> contact point
-    a_raw = u_s - u_m + rho[:, None] * np.cross(Nv, phi_sum)
+    Nxphi = np.cross(Nv, phi_sum)
+    a_raw = u_s - u_m + rho[:, None] * Nxphi
     b = a_raw + mu_T * lam_T[sl]
     g_aug = np.einsum("mab,mb->ma", P, b)
     g_T = np.einsum("mab,mb->ma", P, a_raw)
@@ -231,79 +249,113 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     fT, fR = resT.force, resR.force
     q = np.cross(Nv, fT)
 
-    # residual: w [Vx^T f_T + Vw^T f_R - rho Vl^T (N x f_T)]
-    loc = w[:, None] * (_vec(c_rel, fT) + _vec(np.concatenate([Ns, -Nm], 1), fR, spin=True)
-                        - rho[:, None] * _vec(np.concatenate([Ns, Nm], 1), q, spin=True))
-    dofs = (6 * nodes[:, :, None] + np.arange(6)).reshape(m, 48)
+    # residual: w [Vx^T f_T + Vw^T f_R - rho Vl^T (N x f_T)]: on the slave
+    # nodes N_s (f_T; f_R - rho q), on the master nodes -N_m (f_T; f_R + rho q)
+    wv = w[:, None]
+    loc = np.empty((m, 8, 6))
+    loc[:, :4, :3] = Ns[:, :, None] * (wv * fT)[:, None, :]
+    loc[:, 4:, :3] = Nm[:, :, None] * (-wv * fT)[:, None, :]
+    loc[:, :4, 3:] = Ns[:, :, None] * (wv * (fR - rho[:, None] * q))[:, None, :]
+    loc[:, 4:, 3:] = Nm[:, :, None] * (-wv * (fR + rho[:, None] * q))[:, None, :]
+    dofs = 6 * nodes[:, :, None] + np.arange(6)
     force = np.bincount(dofs.ravel(), weights=loc.ravel(), minlength=n)
     out = FrictionOutput(idx, sl, g_T, g_R, fT, fR, resT.state, resR.state, fN)
     if not tangent:
         return force, None, out
 
-    # linearized primitives, operators (m, 3, 48) / (m, 48)
-    Xrel = _pos(c_rel)
-    Y1m = _pos(c_dm)
+    # linearized primitives on the reduced columns: (m, 3, 18) / (m, 18)
     xy = Nv * l[:, None]
     den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
     use = pairs.interior[idx] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
     Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
-    Xi = Om[:, None] * (np.einsum("mc,mcj->mj", y1, Xrel) + np.einsum("mc,mcj->mj", xy, Y1m))
-    DN = _mm(P, Xrel - y1[:, :, None] * Xi[:, None, :]) / l[:, None, None]
-    DfN = -dfN[:, None] * np.einsum("mc,mcj->mj", Nv, Xrel)
-    Tinv = tangent_inv(phi)[nodes]                                       # (m, 8, 3, 3)
-    Phis = _spin(c_s, Tinv)
-    Phim = _spin(c_m, Tinv) + phi_m1[:, :, None] * Xi[:, None, :]
-    Drho = 0.5 * np.einsum("mc,mcj->mj", Nv, Xrel)       # y' . N = 0
-    Da = (_pos(c_s) - _pos(c_m) - u_m1[:, :, None] * Xi[:, None, :]
-          + rho[:, None, None] * _mm(hat(Nv), Phis + Phim)
+    Xi = np.zeros((m, 6, 3))                        # Delta xi (eq. 6.5)
+    Xi[:, :3, _S] = Om[:, None] * y1
+    Xi[:, :3, _M] = -Xi[:, :3, _S]
+    Xi[:, :3, _D] = Om[:, None] * xy
+    Xi = Xi.reshape(m, 18)
+    DN = _mm(P, _XREL - y1[:, :, None] * Xi[:, None, :]) / l[:, None, None]
+    NX = Nv @ _XREL                                 # N . delta(x - y)
+    DfN = -dfN[:, None] * NX
+    Phim = _PHIM + phi_m1[:, :, None] * Xi[:, None, :]
+    Drho = 0.5 * NX                                 # y' . N = 0
+    Nh = hat(Nv)
+    Da = (_XREL - u_m1[:, :, None] * Xi[:, None, :]
+          + rho[:, None, None] * _mm(Nh, _PHIS + Phim)
           - rho[:, None, None] * _mm(hat(phi_sum), DN)
-          + np.cross(Nv, phi_sum)[:, :, None] * Drho[:, None, :])
+          + Nxphi[:, :, None] * Drho[:, None, :])
     nb = np.sum(Nv * b, axis=1)
     Dg = (-nb[:, None, None] * DN - Nv[:, :, None] * np.einsum("mc,mcj->mj", b, DN)[:, None, :]
           + _mm(P, Da))
     DfT = (_mm(resT.dforce_dslip, Dg)
            + resT.dforce_dnormal[:, :, None] * DfN[:, None, :])
-    DfR = (_mm(resR.dforce_dslip, Phis - Phim)
-           + resR.dforce_dnormal[:, :, None] * DfN[:, None, :])
-    Dq = -_mm(hat(fT), DN) + _mm(hat(Nv), DfT)
+    Dq = _mm(Nh, DfT) - _mm(hat(fT), DN)
 
-    # K_e = w [Vx^T DfT + Vw^T DfR - rho Vl^T Dq - (Vl^T q) Drho^T + moving Xi^T]
-    # row (node k, dof a): the virtual operators are shape-function multiples
-    # of the identity, so each term is a broadcast product (no matmul)
-    c_w = np.concatenate([Ns, -Nm], axis=1)
-    c_l = np.concatenate([Ns, Nm], axis=1)
-    c_dm_neg = np.concatenate([zero, -dNm], axis=1)
-    wc = w[:, None]
-    A_T, A_R, A_q, A_l = wc * c_rel, wc * c_w, wc * rho[:, None] * c_l, wc * c_l
-    # the master shape functions move with xi
-    M_pos = (wc * c_dm_neg)[:, :, None] * fT[:, None, :]
-    M_spin = ((wc * c_dm_neg)[:, :, None] * fR[:, None, :]
-              - (wc * rho[:, None] * c_dm)[:, :, None] * q[:, None, :])
-    # the slaves of one element on one master element share their 8 nodes:
-    # their blocks are summed before the scatter (about 3x fewer blocks);
-    # pairs sorted by (slave element, master element), blocks built chunk
-    # by chunk (a working set that stays in cache), summed slot by slot
-    key = ve * mesh.nodes.shape[0] + me
-    order = np.argsort(key, kind="stable")
-    new = np.r_[True, key[order][1:] != key[order][:-1]]
-    start = np.flatnonzero(new)
-    group = np.cumsum(new) - 1
-    slot = np.arange(m) - start[group]
-    Kg = np.zeros((start.size, 8, 8, 6, 6))             # (group, I, J, a, c)
-    for a in range(0, m, _CHUNK):
-        ix = order[a:a + _CHUNK]
-        Ke = np.empty((ix.size, 8, 6, 48))
-        Ke[:, :, :3] = (A_T[ix][:, :, None, None] * DfT[ix][:, None]
-                        + M_pos[ix][..., None] * Xi[ix][:, None, None, :])
-        Ke[:, :, 3:] = (A_R[ix][:, :, None, None] * DfR[ix][:, None]
-                        - A_q[ix][:, :, None, None] * Dq[ix][:, None]
-                        - A_l[ix][:, :, None, None] * q[ix][:, None, :, None]
-                        * Drho[ix][:, None, None, :]
-                        + M_spin[ix][..., None] * Xi[ix][:, None, None, :])
-        Ke = np.ascontiguousarray(Ke.reshape(ix.size, 8, 6, 8, 6).transpose(0, 1, 3, 2, 4))
-        g, sl = group[a:a + _CHUNK], slot[a:a + _CHUNK]
-        for j in range(int(sl.max()) + 1):
-            sel = sl == j
-            Kg[g[sel]] += Ke[sel]
-    K = scatter_node_blocks(nodes[order[start]], Kg, mesh.n_nodes, 6, layout="IJac")
+    # K_e = w [Vx^T DfT + Vw^T DfR - rho Vl^T Dq - (Vl^T q) Drho^T + moving Xi^T]:
+    # rows by mode too (N_s, N_m, N'_m: the master shape functions move with
+    # xi); C (m, row mode alpha, row dof a, reduced column (c, beta))
+    wc = w[:, None, None]
+    E1 = wc * DfT
+    E2 = -wc * (rho[:, None, None] * Dq + q[:, :, None] * Drho[:, None, :])
+    C = np.empty((m, 3, 6, 18))
+    C[:, 0, :3] = E1
+    C[:, 1, :3] = -E1
+    C[:, 0, 3:] = E2
+    C[:, 1, 3:] = E2
+    if gamma_R > 0:                                 # rotational friction
+        E3 = wc * (_mm(resR.dforce_dslip, _PHIS - Phim)
+                   + resR.dforce_dnormal[:, :, None] * DfN[:, None, :])
+        C[:, 0, 3:] += E3
+        C[:, 1, 3:] -= E3
+    C[:, 2, :3] = -(wv * fT)[:, :, None] * Xi[:, None, :]
+    C[:, 2, 3:] = -(wv * (fR + rho[:, None] * q))[:, :, None] * Xi[:, None, :]
+
+    # the pairs of one element pair {v, e} share their 8 nodes, ordered
+    # (lower element, higher element); U (m, 8, 3): the weight of each mode
+    # at each of these nodes.  The block of a pair is
+    # K[(I a), (J c)] = sum U[I, alpha] C[alpha, a, c, beta] U[J, beta]
+    # (spin columns: times T^-1 of node J): columns expanded pair by pair
+    # (Y, 864 numbers a pair), rows summed over the pairs of an element pair
+    # by one product per element pair, element pairs with the same number of
+    # pairs batched together
+    ne = mesh.nodes.shape[0]
+    hs = (ve > me).astype(np.intp)                  # half of the slave's nodes
+    U = np.zeros((m, 2, 4, 3))
+    ar = np.arange(m)
+    U[ar, hs, :, _S] = Ns
+    U[ar, 1 - hs, :, _M] = Nm
+    U[ar, 1 - hs, :, _D] = dNm
+    U = U.reshape(m, 8, 3)
+    key = np.minimum(ve, me) * ne + np.maximum(ve, me)
+    _, inv, count = np.unique(key, return_inverse=True, return_counts=True)
+    order = np.lexsort((key, count[inv]))          # by pair count, then element pair
+    U = U[order]
+    C = C[order].reshape(m, 3, 6, 6, 3).transpose(0, 1, 4, 3, 2)     # (p, alpha, beta, c, a)
+    Yp = _mm(U[:, None], C[:, :, :, :3].reshape(m, 3, 3, 18))       # (p, alpha, J, (c, a))
+    Tn = tangent_inv(phi)[np.where(hs[order, None], nodes[order][:, [4, 5, 6, 7, 0, 1, 2, 3]],
+                                   nodes[order])]                   # (p, J, c', c)
+    W = (U[:, :, None, :, None] * np.swapaxes(Tn, 2, 3)[:, :, :, None, :]).reshape(m, 24, 9)
+    Yw = _mm(W[:, None], C[:, :, :, 3:].reshape(m, 3, 9, 6))         # (p, alpha, (J, c), a)
+    ge = key[order][np.r_[True, key[order][1:] != key[order][:-1]]]
+    ng = ge.size
+    vals = np.empty((2, ng, 144, 8))               # (pos/spin, g, (J, c, a), I)
+    lo = g0 = 0
+    for k in np.unique(count):
+        g = int(np.count_nonzero(count == k))
+        hi = lo + k * g
+        Uk = U[lo:hi].reshape(g, k, 8, 3).transpose(0, 1, 3, 2).reshape(g, 3 * k, 8)
+        for part, Yk in enumerate((Yp, Yw)):
+            np.matmul(Yk[lo:hi].reshape(g, 3 * k, 144).transpose(0, 2, 1), Uk,
+                      out=vals[part, g0:g0 + g])                    # (g, (J, c, a), I)
+        lo, g0 = hi, g0 + g
+    gnodes = np.concatenate([mesh.nodes[ge // ne], mesh.nodes[ge % ne]], axis=1)
+    nnz, pos, indices, indptr = _pattern(mesh, ge, gnodes)
+    data = np.bincount(pos, weights=vals.ravel(), minlength=nnz)
+    K = sp.csc_matrix((data, indices, indptr), shape=(n, n))
+    if K_normal is not None:
+        K_normal = sp.csc_matrix(K_normal)
+        where = _normal_positions(K_normal, indices, indptr, n)
+        if where is None:
+            K = (K + K_normal).tocsc()
+        else:
+            data[where] += K_normal.data
     return force, K, out

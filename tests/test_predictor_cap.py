@@ -1,0 +1,83 @@
+"""Two Newton safeguards of :func:`skfem_rod.solver.solve`: the secant
+predictor (same equilibria, fewer iterations on a smooth path) and the
+clearance cap (no iterate carries a strand through another)."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod, Section, geometry
+from skfem_rod.solver import SolverOptions
+
+from test_contact import SEC, hairpin
+
+
+def _rollup(**options):
+    sec = Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=0.8)
+    rod = Rod(geometry.straight(1.0), sec, 6).clamp("start")
+    rod.add_moment("end", [0.0, 0.0, 2 * np.pi], follower=False)
+    return rod.solve(n_steps=8, **options)
+
+
+def test_secant_predictor_reaches_the_same_equilibria_in_fewer_iterations():
+    """Rolling a cantilever into a circle in 8 steps: the secant start
+    (the last step's motion, scaled) gives every step's equilibrium to
+    1e-10 and saves Newton iterations from the third step on (the first
+    step has no secant)."""
+    plain, secant = _rollup(), _rollup(predictor="secant")
+    assert plain.converged and secant.converged
+    for a, b in zip(plain.steps, secant.steps):
+        assert np.abs(a.r - b.r).max() <= 1e-10
+    its_plain = sum(st.iterations for st in plain.steps[2:])
+    its_secant = sum(st.iterations for st in secant.steps[2:])
+    assert its_secant < its_plain
+
+
+def _pressed(F, **options):
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 40)
+    rod.clamp("start").add_force("end", [0.0, -F, 0.0])
+    rod.enable_contact()
+    res = rod.solve(n_steps=2, **options)
+    return res, res.steps[-1].r[rod.node("end")][1] / eps
+
+
+def test_clearance_cap_keeps_a_pressed_leg_on_the_other_side():
+    """A hairpin whose free leg (4 eps from the clamped one) is pressed by
+    a large force in two steps: the first Newton update, with no contact in
+    the tangent yet, moves the leg far beyond the other one.  Uncapped, the
+    solve converges to the leg *through* the clamped leg (tip at y < 0);
+    with the clearance cap (the default) every iterate moves the legs
+    toward each other by at most half their clearance and the leg comes to
+    rest on the other one (tip at y = 2 eps to the Uzawa tolerance)."""
+    res, y = _pressed(3.0, clearance_cap=False)
+    assert res.converged and y < -2.0          # the hazard the cap removes
+    res, y = _pressed(3.0)
+    assert res.converged, res.message
+    assert y == pytest.approx(2.0, abs=0.03)
+    assert res.steps[-1].contact.penetration <= 1e-3 * SEC.radius
+
+
+def test_options_are_checked():
+    with pytest.raises(ValueError, match="predictor must be 'none' or 'secant'"):
+        SolverOptions(predictor="linear")
+    with pytest.raises(ValueError, match="clearance_cap must be true or false"):
+        SolverOptions(clearance_cap=1)
+
+
+def test_naturally_straight_rod_started_bent_relaxes_to_straight():
+    """``natural="straight"``: the shape is only the start.  A cantilever
+    started as a quarter circle, unloaded, must come back straight along its
+    clamped tangent at step 0 (the equilibrium solve at load factor 0), with
+    zero stress resultants; a rod whose natural shape is the arc stays put."""
+    sec = Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=0.8)
+    arc = geometry.arc(2 / np.pi, np.pi / 2)                 # length 1, tangent x at s = 0
+    rod = Rod(arc, sec, 8, natural="straight").clamp("start")
+    res = rod.solve(1)
+    assert res.converged, res.message
+    s = np.linspace(0.0, 1.0, 11)
+    f = res.evaluate(s, 0)
+    assert np.abs(f["r"] - np.c_[s, 0 * s, 0 * s]).max() <= 1e-9
+    assert np.abs(f["m"]).max() <= 1e-8 and np.abs(f["n"]).max() <= 1e-8
+    curved = Rod(arc, sec, 8).clamp("start").solve(1)
+    assert np.abs(curved.steps[0].r - curved.rod.r0).max() == 0.0
+    with pytest.raises(ValueError, match="natural must be 'reference' or 'straight'"):
+        Rod(arc, sec, 8, natural="curved")

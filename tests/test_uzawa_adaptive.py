@@ -1,0 +1,90 @@
+"""Adaptive penalty of the Uzawa loop (the method of multipliers' penalty
+update, ``solver._adapt_penalty``): fewer updates, the same converged answer
+to the tolerances, bad options refused, and the penalty factors saved and
+restored with the multipliers of a rejected step."""
+import numpy as np
+import pytest
+
+from helpers import load_demo
+from skfem_rod import Rod
+from skfem_rod.solver import _System
+from test_contact import SEC, hairpin
+
+
+def _hairpin(growth):
+    """The pressed hairpin of test_contact with a soft penalty (1000 times
+    the library default compliance): fixed-penalty Uzawa converges by a
+    factor close to 1 per update on its line contact."""
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 30)
+    rod.clamp("start").add_force("end", [0, -0.6, 0])
+    rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, penalty_growth=growth, max_uzawa=60)
+    return rod, rod.solve(n_steps=4)
+
+
+def test_adaptive_penalty_needs_fewer_updates_for_the_same_answer():
+    eps = SEC.radius
+    rod, fixed = _hairpin(1.0)
+    _, adaptive = _hairpin(4.0)
+    assert fixed.converged and adaptive.converged, (fixed.message, adaptive.message)
+    tol = rod.contact.tolerance * eps
+    n_fixed = sum(st.contact.uzawa for st in fixed.steps)
+    n_adaptive = sum(st.contact.uzawa for st in adaptive.steps)
+    for res in (fixed, adaptive):
+        for st in res.steps:
+            c = st.contact
+            assert c.uzawa_converged
+            assert c.penetration <= tol
+            assert np.all(np.abs(c.gap) <= tol)        # active points sit on contact
+    assert n_fixed >= 20                               # the slow case it is about
+    assert n_adaptive <= n_fixed / 2
+    # the converged answer does not depend on the path: both satisfy the
+    # contact law to tol, so the configurations agree to a few tol
+    a, b = fixed.steps[-1], adaptive.steps[-1]
+    assert np.abs(a.r - b.r).max() <= 5 * tol
+    assert a.contact.total_force == pytest.approx(b.contact.total_force, rel=1e-2)
+
+
+def test_adaptive_penalty_with_friction_same_coulomb_answer():
+    """The rotational-friction scene (16 elements, two steps): fewer Uzawa
+    updates with the adaptive penalty, both within the tolerances, and the
+    same configuration and normal force to the friction tolerance."""
+    from helpers import coulomb_checks
+    rf = load_demo("rotational_friction")
+    out = {}
+    for growth in (1.0, 4.0):
+        rod, _ = rf.build(gamma_R=rf.EPS, n_elements=16, phi=0.03)
+        rod.contact.penalty_growth = growth
+        res = rod.solve(n_steps=2)
+        assert res.converged and "Uzawa did not reach" not in res.message, res.message
+        coulomb_checks(res, 0.0, rf.EPS)
+        out[growth] = res
+    n_fixed = sum(st.contact.uzawa for st in out[1.0].steps)
+    n_adaptive = sum(st.contact.uzawa for st in out[4.0].steps)
+    assert n_adaptive < n_fixed
+    a, b = out[1.0].steps[-1], out[4.0].steps[-1]
+    assert np.abs(a.r - b.r).max() <= 1e-3 * rf.EPS
+    assert a.contact.total_force == pytest.approx(b.contact.total_force,
+                                                  rel=rod.contact.friction_tolerance)
+
+
+@pytest.mark.parametrize("name,value", [("penalty_growth", 0.5), ("penalty_growth", np.nan),
+                                        ("max_penalty_scale", 0.9), ("penalty_growth", True)])
+def test_bad_adaptive_penalty_options(name, value):
+    rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 8)
+    with pytest.raises(ValueError, match=name):
+        rod.enable_contact(**{name: value})
+
+
+@pytest.mark.parametrize("friction", [False, True])
+def test_penalty_factors_saved_and_restored_with_the_multipliers(friction):
+    rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 8)
+    rod.enable_contact(gamma_T=0.3 if friction else 0.0)
+    system = _System(rod)
+    saved = system.save_multipliers()
+    system.multipliers += 1.0
+    system.penalty_scale *= 16.0
+    system.friction_scale = 64.0
+    system.restore_multipliers(saved)
+    assert np.all(system.multipliers == 0.0)
+    assert np.all(system.penalty_scale == 1.0) and system.friction_scale == 1.0
