@@ -1,12 +1,14 @@
 r"""Overhand (trefoil) knot pulled tight and let loose, with and without friction
 ==============================================================================
 
-A rod is tied into an open overhand knot (an open trefoil).  One end is
-clamped; the other end is clamped too but moved along the pulling axis ``x``
-(end-to-end distance control): first away from the clamp by ``pull``
-(the knot tightens), then back to where it started (the knot loosens,
-pushed open by its own bending stiffness).  The load path is
-``path=[0, 1, 0]``.  The pulling force ``F`` is the ``x`` reaction of the
+A naturally straight rod (``Rod(..., natural="straight")``) is tied into an
+open overhand knot (an open trefoil): the knot shape below is where the
+solve starts, and step 0 relaxes it, ends held, into the knot's
+equilibrium at that end distance.  Both ends are clamped; the end is moved
+along the pulling axis ``x`` (end-to-end distance control): first away from
+the start by ``pull`` (the knot tightens), then back to where it started
+(the knot loosens, pushed open by its own bending stiffness).  The load path
+is ``path=[0, 1, 0]``.  The pulling force ``F`` is the ``x`` reaction of the
 moved end.  Self-contact is on (contact radius ``h`` = the tube radius), with
 tangential Coulomb friction ``gamma_T`` (0 = frictionless) and no rotational
 friction.
@@ -26,11 +28,11 @@ their closest (6 by default; :func:`min_strand_distance` checks it).
 What it measures
 ----------------
 Per converged step: end-to-end distance ``d``, pulling force ``F``, the
-loop radius ``R`` read off the FE shape (radius of curvature at the point
-of the knot farthest from the pulling axis, the apex of the loop), the
-number of contact points, stick/slip counts, penetration, dissipated
-energy, link (``Result.topology``: constant unless strands pass through
-each other) and the smallest distance between strands.
+arclength spanned by the contact points (loop plus braid), the number of
+contact points, stick/slip counts, penetration, total normal and friction
+force, dissipated energy, link and writhe (``Result.topology``: the link is
+constant unless strands pass through each other, the ends being clamped)
+and the smallest distance between strands.
 
 Frictionless statics is path-independent: the loosening branch must retrace
 the tightening branch.  With friction the knot resists both ways: the force
@@ -41,8 +43,10 @@ braid (tight-knot limit, ``eps = sqrt(h / R)`` small),
 
     F h^2 / B = eps^4 / 2  +/-  c gamma eps^3,     c = 0.492 (trefoil),
 
-``+`` tightening, ``-`` loosening; docs/knot.md compares it with the
-measured branches.
+``+`` tightening, ``-`` loosening.  :func:`compare` reads ``eps`` off the
+frictionless force (``eps^4 = 2 F0 h^2 / B``) and returns the constant ``c``
+the measured hysteresis ``F_up - F_down`` would need; docs/knot.md has
+the status of that comparison.
 
 Run ``python demos/knot.py --help``.
 """
@@ -103,16 +107,39 @@ def shape(eps=EPS, clearance=6.0, tail=0.5):
     return geometry.polyline(knot_points(eps, clearance, tail))
 
 
-def build(gamma_T=0.0, pull=1.2, n_elements=80, eps=EPS, clearance=6.0, tail=0.5,
+def build(gamma_T=0.0, pull=0.2, n_elements=60, eps=EPS, clearance=6.0, tail=0.5,
           **contact):
-    """The rod: start clamped, end clamped and moved by ``pull`` along ``x``
-    at load factor 1; contact with tangential friction ``gamma_T``."""
-    rod = Rod(shape(eps, clearance, tail), section(eps), n_elements)
+    """The rod, naturally straight (``Rod(..., natural="straight")``): the
+    knot shape is only where the solve starts, and step 0 relaxes it at the
+    start's end distance into a loose knot under tension.  Both ends are
+    clamped on the pulling axis ``x`` (the twist is held, so the link is
+    conserved and any strand passage shows in it; clamped tails also keep
+    the loop from slipping off an end); the end is moved by ``pull`` along
+    ``x`` at load factor 1.  Contact with tangential friction ``gamma_T``."""
+    rod = Rod(shape(eps, clearance, tail), section(eps), n_elements, natural="straight")
     rod.clamp("start")
     rod.clamp("end")
     rod.prescribe_displacement("end", [pull, 0.0, 0.0])
+    # all points of the sliding knot slip, so the friction multipliers follow
+    # every change of the normal ones: Uzawa may need more than 30 updates
+    contact.setdefault("max_uzawa", 60)
     rod.enable_contact(radius=eps, gamma_T=gamma_T, **contact)
     return rod
+
+
+def tie(n_elements=60, eps=EPS, clearance=6.0, tail=0.5, **contact):
+    """The knot tied without friction: the equilibrium of the naturally
+    straight rod at the start's end distance (step 0 of a frictionless
+    solve; a :class:`skfem_rod.Result` whose last step it is, with its
+    contact forces, which ``Rod.solve(start=...)`` takes as multipliers).
+    Every friction coefficient starts from it, so that the knots compared
+    differ only in how they are pulled."""
+    rod = build(0.0, 1.0, n_elements, eps, clearance, tail, **contact)
+    res = rod.solve(n_steps=1, path=[0.0, 1e-12], snap="relax", max_iterations=12)
+    if not res.converged:
+        raise RuntimeError(f"tying the knot failed: {res.message}")
+    res.steps = res.steps[:1]
+    return res
 
 
 def _sampled(result, k, per_element):
@@ -121,18 +148,14 @@ def _sampled(result, k, per_element):
     return s, result.evaluate(s, k)["r"]
 
 
-def loop_radius(result, k, per_element=16):
-    """Radius of curvature at the apex of the loop: the point of the knot
-    (the part between the tails) farthest from the pulling axis ``x``."""
-    s, r = _sampled(result, k, per_element)
-    rho = np.hypot(r[:, 1], r[:, 2])
-    i = int(np.argmax(rho))
-    # curvature from the sampled centreline (central differences in s)
-    t = np.gradient(r, s, axis=0)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    kappa = np.linalg.norm(np.gradient(t, s, axis=0), axis=1)
-    j = slice(max(i - per_element // 2, 0), i + per_element // 2 + 1)
-    return float(1.0 / np.mean(kappa[j]))
+def knot_length(contact):
+    """Arclength spanned by the contact points and their partners (the
+    stretch of rod from the first to the last passage through the braid:
+    loop plus braid); 0 without contact."""
+    if contact is None or contact.s.size == 0:
+        return 0.0
+    s = np.r_[contact.s, contact.s_bar]
+    return float(s.max() - s.min())
 
 
 def record(result, k, eps):
@@ -141,39 +164,42 @@ def record(result, k, eps):
     s, r, _ = result.nodes(k)
     F = result.reaction("end", k)[0]
     c = st.contact
-    top = result.topology(k)
+    top = result.topology(k, per_element=4)
     row = dict(step=k, time=st.time, load_factor=st.load_factor,
                distance=float(np.linalg.norm(r[-1] - r[0])),
-               force=float(F[0]), loop_radius=loop_radius(result, k),
+               force=float(F[0]), knot_length=knot_length(c),
                link=float(top.link), writhe=float(top.writhe),
                min_strand_distance=min_strand_distance(
                    *_sampled(result, k, 6)[::-1], 2.5 * np.pi * eps),
                n_contact=0, stick=0, slip=0, penetration=0.0, dissipation=0.0,
-               uzawa=0, newton=st.iterations, normal_force=0.0)
+               uzawa=0, newton=st.iterations, normal_force=0.0, friction_force=0.0)
     if c is not None:
         row.update(n_contact=int(c.s.size), penetration=float(c.penetration),
                    uzawa=int(c.uzawa), newton=int(c.newton_total),
                    normal_force=c.total_force / 2)
         if c.friction:
             row.update(stick=int(np.sum(c.state_T == 1)), slip=int(np.sum(c.state_T == 2)),
-                       dissipation=float(c.dissipation))
+                       dissipation=float(c.dissipation),
+                       friction_force=float(np.sum(np.linalg.norm(c.force_T, axis=1)
+                                                   * c.weight)) / 2)
     return row
 
 
-def solve(gamma_T=0.0, pull=1.2, n_elements=80, n_steps=40, eps=EPS, clearance=6.0,
-          tail=0.5, max_iterations=6, verbose=False, **contact):
+def solve(gamma_T=0.0, pull=0.2, n_elements=60, n_steps=10, eps=EPS, clearance=6.0,
+          tail=0.5, verbose=False, start=None, **contact):
     """Tighten (load factor 0 -> 1) and loosen (1 -> 0) in ``n_steps``
-    steps each way (``2 n_steps`` in all, more if steps are cut).
+    steps each way (``2 n_steps`` in all, more if steps are cut), from the
+    knot tied without friction (``start``, default :func:`tie`).
 
     Solver choices (measured, see docs/knot.md): in the loose knot the
-    tangent is nearly singular (the loops can swing and slide on the few
-    contact points), and plain Newton iterates move nodes by 10 to 37 tube
-    radii at a time; with 25 iterations allowed such an iterate carried one
-    strand through another (the link jumped from -2.5 to +1.5 turns) and the
-    knot came undone.  So Newton gets only ``max_iterations`` (6) per step,
-    and a step that does not converge by then is relaxed by the gradient
-    flow (``snap="relax"``), whose iterates may not move two strands towards
-    each other by more than half their clearance."""
+    tangent is nearly singular (the loops swing and slide on a few contact
+    points).  Each step starts from the secant predictor (the last step's
+    motion, scaled), Newton updates are capped so that no iterate carries a
+    strand through another (``clearance_cap``), and a step Newton does not
+    finish in 12 iterations is relaxed by the gradient flow
+    (``snap="relax"``)."""
+    if start is None:
+        start = tie(n_elements, eps, clearance, tail, **contact)
     rod = build(gamma_T, pull, n_elements, eps, clearance, tail, **contact)
     rows = []
 
@@ -182,14 +208,14 @@ def solve(gamma_T=0.0, pull=1.2, n_elements=80, n_steps=40, eps=EPS, clearance=6
         if verbose:
             w = rows[-1]
             print(f"  k={k:3d} lam={w['load_factor']:.3f} d={w['distance']:.4f} "
-                  f"F={w['force']:9.4f} R/h={w['loop_radius'] / eps:6.2f} n_c={w['n_contact']:3d} "
+                  f"F={w['force']:9.4f} N={w['normal_force']:7.3f} n_c={w['n_contact']:3d} "
                   f"slip={w['slip']:3d} pen/h={w['penetration'] / eps:.1e} "
                   f"dmin/h={w['min_strand_distance'] / eps:.3f} Lk={w['link']:+.3f} "
                   f"newton={w['newton']} uzawa={w['uzawa']}", flush=True)
 
     t0 = time.perf_counter()
     result = rod.solve(n_steps=2 * n_steps, path=[0.0, 1.0, 0.0], callback=cb, snap="relax",
-                       max_iterations=max_iterations)
+                       max_iterations=12, predictor="secant", start=start)
     wall = time.perf_counter() - t0
     return dict(rod=rod, result=result, rows=rows, wall_time_s=wall, gamma_T=gamma_T,
                 eps=eps, pull=pull)
@@ -211,10 +237,17 @@ def branches(rows):
     return out
 
 
-def hysteresis(rows, d_at):
-    """Tightening and loosening forces interpolated at end distances ``d_at``."""
-    (du, Fu, _), (dd, Fd, _) = branches(rows)
-    return np.interp(d_at, du, Fu), np.interp(d_at, dd, Fd)
+def same_load_pairs(rows):
+    """Index pairs (tightening, loosening) of the steps at the same load
+    factor (hence the same end distance), the turning step excluded."""
+    lam = np.array([w["load_factor"] for w in rows])
+    t = np.array([w["time"] for w in rows])
+    pairs = []
+    for i in np.flatnonzero(t < 0.5 - 1e-12):
+        j = np.flatnonzero((t > 0.5 + 1e-12) & np.isclose(lam, lam[i], rtol=0, atol=1e-12))
+        if j.size:
+            pairs.append((int(i), int(j[0])))
+    return pairs
 
 
 def audoly(eps_knot, gamma, c=C_TREFOIL):
@@ -224,75 +257,150 @@ def audoly(eps_knot, gamma, c=C_TREFOIL):
     return 0.5 * e**4 + c * gamma * e**3, 0.5 * e**4 - c * gamma * e**3
 
 
+def compare(frictionless, rows, gamma, eps=EPS):
+    """The friction term of the tight-knot relation measured on a run.
+
+    At every end distance ``d`` past the start where the knot is in contact
+    on both branches of the frictional run: the frictionless force ``F0(d)`` (the
+    tightening branch of ``frictionless``, interpolated), the knot's
+    ``eps = (2 F0 h^2 / B)^(1/4)`` (the frictionless relation read
+    backwards, i.e. ``R = h / eps^2`` defined by the force, not by a fitted
+    circle), the hysteresis ``dF = F_up - F_down``, the friction constant
+    ``c = dF h^2 / (2 gamma B eps^3)`` that the relation would need, the
+    force ratio ``F_up / F_down`` and the ratio the relation predicts with
+    ``c = C_TREFOIL``.  Returns a dict of arrays (empty without contact)."""
+    (d0, F0) = np.array([(w["distance"], w["force"]) for w in frictionless
+                         if w["time"] <= 0.5 + 1e-12]).T
+    o = np.argsort(d0)
+    out = {k: [] for k in ("distance", "F_up", "F_down", "F0", "eps", "dF", "c",
+                           "ratio", "ratio_predicted", "normal_force0", "friction_force")}
+    N0 = np.array([w["normal_force"] for w in frictionless if w["time"] <= 0.5 + 1e-12])[o]
+    for i, j in same_load_pairs(rows):
+        up, down = rows[i], rows[j]
+        if up["load_factor"] == 0 or not (up["n_contact"] and down["n_contact"]):
+            continue                 # the tied start is not a sliding state
+        f0 = float(np.interp(up["distance"], d0[o], F0[o]))
+        if f0 <= 0:
+            continue
+        e = (2 * f0 * eps**2 / B) ** 0.25
+        dF = up["force"] - down["force"]
+        pu, pd = audoly(e, gamma)
+        out["distance"].append(up["distance"])
+        out["F_up"].append(up["force"])
+        out["F_down"].append(down["force"])
+        out["F0"].append(f0)
+        out["eps"].append(e)
+        out["dF"].append(dF)
+        out["c"].append(dF * eps**2 / (2 * gamma * B * e**3) if gamma > 0 else 0.0)
+        out["ratio"].append(up["force"] / down["force"])
+        out["ratio_predicted"].append(pu / pd if pd > 0 else np.inf)
+        out["normal_force0"].append(float(np.interp(up["distance"], d0[o], N0)))
+        out["friction_force"].append(up["friction_force"])
+    return {k: np.array(v) for k, v in out.items()}
+
+
 #: settings of the test suite (a short pull: the loose knot, no contact yet)
 #: and of the gallery (demos/gallery.py)
-SMALL = dict(gammas=(0.0,), pull=0.1, n_elements=48, n_steps=4, window_size=(480, 360))
-GALLERY = dict(gammas=(0.0, 0.2), pull=0.6, n_elements=80, n_steps=40, window_size=(720, 540))
+SMALL = dict(gammas=(0.0,), pull=0.02, n_elements=48, n_steps=1, window_size=(480, 360),
+             animate=False)
+GALLERY = dict(gammas=(0.0, 0.2), pull=0.2, n_elements=60, n_steps=10, window_size=(720, 540))
 
 
-def main(out="output/knot", gammas=(0.0, 0.1, 0.2, 0.3), pull=1.2, n_elements=80, n_steps=40,
-         render=True, verbose=True, window_size=(900, 600)):
+def main(out="output/knot", gammas=(0.0, 0.1, 0.2, 0.3), pull=0.2, n_elements=60, n_steps=10,
+         render=True, verbose=True, window_size=(900, 600), animate=True):
     os.makedirs(out, exist_ok=True)
+    gammas = tuple(gammas)
+    if 0.0 not in gammas:
+        gammas = (0.0,) + gammas          # the frictionless reference of the comparison
     sols = []
+    tied = tie(n_elements)
     for g in gammas:
         if verbose:
             print(f"gamma_T = {g}")
-        sol = solve(g, pull, n_elements, n_steps, verbose=verbose)
+        sol = solve(g, pull, n_elements, n_steps, verbose=verbose, start=tied)
         if verbose:
             print(" ", sol["result"].message, f"({sol['wall_time_s']:.1f} s)")
         sols.append(sol)
+    ref = sols[gammas.index(0.0)]["rows"]
     summary = dict(problem="overhand knot tightened and loosened (end-to-end distance control)",
                    parameters=dict(eps=EPS, B=B, pull=pull, n_elements=n_elements,
                                    n_steps=n_steps, gammas=list(gammas), c_trefoil=C_TREFOIL),
                    runs=[])
     for sol in sols:
         rows = sol["rows"]
-        k_top = int(np.argmax([w["load_factor"] for w in rows]))
-        top = rows[k_top]
-        eps_k = np.sqrt(EPS / top["loop_radius"])
-        up, down = audoly(eps_k, sol["gamma_T"])
-        summary["runs"].append(dict(
-            gamma_T=sol["gamma_T"], converged=sol["result"].converged,
-            message=sol["result"].message, wall_time_s=sol["wall_time_s"],
-            tightest=dict(distance=top["distance"], force=top["force"],
-                          loop_radius=top["loop_radius"], eps_knot=float(eps_k),
-                          F_h2_over_B=top["force"] * EPS**2 / B,
-                          audoly_tightening=float(up), audoly_loosening=float(down)),
-            max_penetration_over_h=max(w["penetration"] for w in rows) / EPS,
-            min_strand_distance_over_h=min(w["min_strand_distance"] for w in rows) / EPS,
-            link_range=[min(w["link"] for w in rows), max(w["link"] for w in rows)],
-            dissipated=float(sum(w["dissipation"] for w in rows)),
-            rows=rows))
+        cmp_ = compare(ref, rows, sol["gamma_T"]) if sol["gamma_T"] > 0 else None
+        run = dict(gamma_T=sol["gamma_T"], converged=sol["result"].converged,
+                   message=sol["result"].message, wall_time_s=sol["wall_time_s"],
+                   top=max(rows, key=lambda w: w["load_factor"]),
+                   max_penetration_over_h=max(w["penetration"] for w in rows) / EPS,
+                   min_strand_distance_over_h=min(w["min_strand_distance"] for w in rows) / EPS,
+                   link_range=[min(w["link"] for w in rows), max(w["link"] for w in rows)],
+                   dissipated=float(sum(w["dissipation"] for w in rows)),
+                   rows=rows)
+        pairs = same_load_pairs(rows)
+        both = [(i, j) for i, j in pairs if rows[i]["n_contact"] and rows[j]["n_contact"]]
+        run["max_force_ratio"] = (max(rows[i]["force"] / rows[j]["force"] for i, j in both)
+                                  if both else None)
+        if cmp_ is not None and cmp_["c"].size:
+            run["audoly"] = {k: v.tolist() for k, v in cmp_.items()}
+            run["c_median"] = float(np.median(cmp_["c"]))
+        summary["runs"].append(run)
     from skfem_rod.export import write_json
     summary["converged"] = all(r["converged"] for r in summary["runs"])
     write_json(os.path.join(out, "results.json"), summary)
     summary["renders"], summary["plots"] = [], []
     if render:
-        summary["plots"].append(_plot(sols, os.path.join(out, "force_distance.png")))
+        summary["plots"].append(_plot(sols, ref, os.path.join(out, "force_distance.png")))
         summary["renders"].append(_render(sols[-1], os.path.join(out, "knot_tight.png"),
                                           window_size))
+        if animate:
+            summary["animations"] = [_animate(sols[-1], os.path.join(out, "knot_cycle.gif"),
+                                              window_size)]
     return summary
 
 
-def _plot(sols, path):
+def _plot(sols, ref, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.2, 4.4))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4))
     colors = plt.cm.viridis(np.linspace(0, 0.85, len(sols)))
     for sol, col in zip(sols, colors):
-        (du, Fu, _), (dd, Fd, _) = branches(sol["rows"])
-        g = sol["gamma_T"]
-        ax.plot(du, Fu, "-", color=col, label=rf"$\gamma_T = {g:g}$ tightening")
-        ax.plot(dd, Fd, "--", color=col, label=rf"$\gamma_T = {g:g}$ loosening")
+        rows, g = sol["rows"], sol["gamma_T"]
+        up = [w for w in rows if w["time"] <= 0.5 + 1e-12]
+        down = [w for w in rows if w["time"] >= 0.5 - 1e-12]
+        ax.plot([w["distance"] for w in up], [w["force"] for w in up], "-", color=col,
+                label=rf"$\gamma_T = {g:g}$ tightening")
+        ax.plot([w["distance"] for w in down], [w["force"] for w in down], "--", color=col,
+                label=rf"$\gamma_T = {g:g}$ loosening")
+        if g > 0:
+            c = compare(ref, rows, g)
+            if c["c"].size:
+                bx.plot(c["eps"], c["dF"] * EPS**2 / (2 * g * B), "o", color=col, ms=3.5,
+                        label=rf"$\gamma_T = {g:g}$")
     ax.set_xlabel("end-to-end distance $d$")
     ax.set_ylabel("pulling force $F$ ($B = 1$)")
     ax.legend(fontsize=7, ncol=2)
     ax.set_title("overhand knot: tighten (solid) and loosen (dashed)")
+    e = np.linspace(0.17, 0.3, 50)
+    bx.plot(e, C_TREFOIL * e**3, "k-", lw=1, label=rf"$c\,\varepsilon^3$, $c = {C_TREFOIL}$")
+    bx.set_xlabel(r"$\varepsilon = (2 F_0 h^2 / B)^{1/4}$")
+    bx.set_ylabel(r"$(F_{up} - F_{down})\, h^2 / (2 \gamma_T B)$")
+    bx.set_yscale("log")
+    bx.set_xscale("log")
+    bx.legend(fontsize=7)
+    bx.set_title("friction term of the tight-knot relation")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _contact_markers(res, k):
+    c = res.steps[k].contact
+    pts = res.contact_points(k)
+    states = (c.state_T if c is not None and c.friction else np.zeros(len(pts), int))
+    return pts, states
 
 
 def _render(sol, path, window_size=(900, 600)):
@@ -302,22 +410,35 @@ def _render(sol, path, window_size=(900, 600)):
     res = sol["result"]
     k = int(np.argmax([st.load_factor for st in res.steps]))
     f = res.sample(8, k)
-    c = res.steps[k].contact
-    pts = res.contact_points(k)
-    states = (c.state_T if c is not None and c.friction else np.zeros(len(pts), int))
+    pts, states = _contact_markers(res, k)
     render_contact_states(path, f["r"], f["R"], sol["eps"], pts, states,
                           window_size=window_size,
-                          title=f"tight knot, gamma_T = {sol['gamma_T']:g}")
+                          title=f"tightest knot, gamma_T = {sol['gamma_T']:g}")
     return path
-    return path
+
+
+def _animate(sol, path, window_size):
+    """GIF of the tighten-and-loosen cycle, contact markers by stick/slip."""
+    from skfem_rod.render import render_animation
+    res = sol["result"]
+    configs, points, states, titles = [], [], [], []
+    for k, w in enumerate(sol["rows"]):
+        f = res.sample(6, k)
+        configs.append((f["r"], f["R"]))
+        p, s_ = _contact_markers(res, k)
+        points.append(p)
+        states.append(s_)
+        titles.append(f"d = {w['distance']:.3f}, F = {w['force']:.2f}")
+    return render_animation(path, configs, sol["eps"], window_size=window_size, titles=titles,
+                            contact_points=points, contact_states=states, fps=6)
 
 
 if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", default="output/knot")
     p.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.1, 0.2, 0.3])
-    p.add_argument("--pull", type=float, default=1.2)
-    p.add_argument("--elements", type=int, default=80)
-    p.add_argument("--steps", type=int, default=40)
+    p.add_argument("--pull", type=float, default=0.2)
+    p.add_argument("--elements", type=int, default=60)
+    p.add_argument("--steps", type=int, default=10)
     a = p.parse_args()
     main(a.out, tuple(a.gammas), a.pull, a.elements, a.steps)

@@ -671,7 +671,7 @@ class Rod:
                 + ". Add a support (clamp, pin, fix_rotation or prescribe_*) that "
                 "removes them.")
 
-    def solve(self, n_steps=1, path=None, callback=None, **options):
+    def solve(self, n_steps=1, path=None, callback=None, start=None, **options):
         """Solve the equilibrium along the load path.
 
         Parameters
@@ -687,6 +687,13 @@ class Rod:
         callback : callable, optional
             ``callback(result, k)`` after each converged step ``k`` (e.g. a
             progress line).
+        start : Result or (r, R), optional
+            Start step 0 from this state instead of the reference: the last
+            step of a Result (of a rod with the same mesh), or nodal
+            positions ``(n, 3)`` and rotations ``(n, 3, 3)``.  Step 0 is then
+            an equilibrium solve at load factor 0 (with contact multipliers;
+            slips of friction are measured from the start), e.g. a knot tied
+            without friction and then pulled with it.
         **options
             See :class:`skfem_rod.solver.SolverOptions` (``rtol``,
             ``max_iterations``, ``line_search``, ``min_step``, ...).
@@ -718,10 +725,13 @@ class Rod:
         """
         method = options.pop("method", "newton")
         if method == "arclength":
+            if start is not None:
+                raise ValueError("start is not supported with method='arclength'")
             from .continuation import solve_arclength
             return solve_arclength(self, n_steps=n_steps, path=path, callback=callback,
                                    **options)
         if method != "newton":
             raise ValueError(f"method must be 'newton' or 'arclength', got {method!r}")
         from .solver import solve
-        return solve(self, n_steps=n_steps, path=path, callback=callback, **options)
+        return solve(self, n_steps=n_steps, path=path, callback=callback, start=start,
+                     **options)

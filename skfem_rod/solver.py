@@ -414,9 +414,53 @@ def _load_path(path):
     return times, p
 
 
-def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
+def _start_state(rod, start):
+    """Nodal ``(r, R)`` to start from: a :class:`Result` (its last step) or
+    a pair of arrays; checked."""
+    if isinstance(start, Result):
+        if not start.steps:
+            raise ValueError("start: the Result has no converged step")
+        r, R = start.steps[-1].r, start.steps[-1].R
+    else:
+        try:
+            r, R = start
+        except (TypeError, ValueError):
+            raise ValueError(f"start must be a Result or a pair (r, R) of nodal positions "
+                             f"and rotations, got {type(start).__name__}") from None
+    r, R = np.array(r, dtype=float), np.array(R, dtype=float)
+    n = rod.r0.shape[0]
+    if r.shape != (n, 3) or R.shape != (n, 3, 3):
+        raise ValueError(f"start: r must have shape ({n}, 3) and R ({n}, 3, 3) for this rod, "
+                         f"got {r.shape} and {R.shape}")
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(R))):
+        raise ValueError("start: r and R must be finite")
+    from .rotations import is_rotation
+    if not np.all(is_rotation(R, tol=1e-8)):
+        raise ValueError("start: R must hold rotation matrices (R^T R = I, det R = 1)")
+    return r, R
+
+
+def _carry_multipliers(system, contact):
+    """Normal multipliers of a converged contact state (``lambda = f_N`` at
+    its active slave points, matched by arclength), so that a solve started
+    from it does not begin Uzawa again from zero."""
+    if contact is None or contact.s.size == 0:
+        return
+    s = np.ravel(system.slaves.s)          # flat slave index = multiplier index
+    i = np.searchsorted(s, contact.s)
+    i = np.clip(i, 0, s.size - 1)
+    j = np.where(np.abs(s[np.clip(i - 1, 0, s.size - 1)] - contact.s)
+                 < np.abs(s[i] - contact.s), np.clip(i - 1, 0, s.size - 1), i)
+    if np.abs(s[j] - contact.s).max() > 1e-9 * system.rod.length:
+        return                           # another mesh: start Uzawa from zero
+    system.multipliers[j] = contact.force
+
+
+def solve(rod, n_steps=1, path=None, callback=None, start=None, **kwargs):
     """Step the rod along the load path; see :meth:`Rod.solve`.
-    ``callback(result, k)`` is called after each converged step ``k``."""
+    ``callback(result, k)`` is called after each converged step ``k``;
+    ``start`` (a Result or ``(r, R)``) replaces the reference as the state
+    step 0 starts from (step 0 is then an equilibrium solve)."""
     if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
         raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
     times, values = _load_path(path)
@@ -425,20 +469,28 @@ def solve(rod, n_steps=1, path=None, callback=None, **kwargs):
     rod.check_constraints()
     system = _System(rod)
     result = Result(rod)
-    r, R = rod.r0.copy(), rod.R0.copy()
+    if start is None:
+        r0, R0 = rod.r0, rod.R0
+    else:
+        r0, R0 = _start_state(rod, start)
+    r, R = r0.copy(), R0.copy()
+    if system.friction:                  # slips of step 0 are measured from the start
+        system.converged_state = (r0.copy(), R0.copy())
+    if isinstance(start, Result) and system.contact is not None:
+        _carry_multipliers(system, start.steps[-1].contact)
     zero = np.zeros(rod.mesh.n_dofs)
-    stressed = getattr(rod, "natural", "reference") == "straight"
+    stressed = getattr(rod, "natural", "reference") == "straight" or start is not None
     if stressed:            # a stressed start: an equilibrium solve, with Uzawa
         ok, r, R, info = _step(system, r, R, 0.0, zero, opts)
     else:                   # the stress-free reference: a check (no multipliers)
         ok, r, R, info = newton(system, r, R, 0.0, zero, opts)
     if not ok and stressed and opts.snap == "relax":
         from .relax import flow
-        ok, r, R, info = _step(system, rod.r0.copy(), rod.R0.copy(), 0.0, zero, opts,
-                               inner=flow)
+        ok, r, R, info = _step(system, r0.copy(), R0.copy(), 0.0, zero, opts, inner=flow)
     if not ok:
-        start = "reference" if rod.natural == "reference" else "initial shape"
-        result.finish(False, f"no equilibrium at load factor 0 from the {start}: "
+        where = ("reference" if not stressed else
+                 "initial shape" if start is None else "given start state")
+        result.finish(False, f"no equilibrium at load factor 0 from the {where}: "
                              f"{info['reason']}")
         return result
     if opts.stability:

@@ -81,3 +81,45 @@ def test_naturally_straight_rod_started_bent_relaxes_to_straight():
     assert np.abs(curved.steps[0].r - curved.rod.r0).max() == 0.0
     with pytest.raises(ValueError, match="natural must be 'reference' or 'straight'"):
         Rod(arc, sec, 8, natural="curved")
+
+
+def test_solve_from_a_given_start_state():
+    """``start=``: a cantilever loaded in two steps, then solved again from
+    the loaded state with the load held (path 0 -> 0.5 of a doubled load):
+    step 0 is an equilibrium solve that stays where the start was (it is
+    in equilibrium under the constant preload); bad start values are
+    refused with the parameter named."""
+    sec = Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=0.8)
+    rod = Rod(geometry.straight(1.0), sec, 6).clamp("start")
+    rod.add_force("end", [0.0, 2.0, 0.0])
+    first = rod.solve(2)
+    held = Rod(geometry.straight(1.0), sec, 6).clamp("start")
+    held.add_force("end", [0.0, 2.0, 0.0], constant=True)
+    second = held.solve(1, start=first)
+    assert second.converged, second.message
+    assert np.abs(second.steps[0].r - first.steps[-1].r).max() <= 1e-10
+    again = held.solve(1, start=(first.steps[-1].r, first.steps[-1].R))
+    assert np.abs(again.steps[-1].r - second.steps[-1].r).max() == 0.0
+    with pytest.raises(ValueError, match=r"start: r must have shape \(19, 3\)"):
+        held.solve(1, start=(first.steps[-1].r[:-1], first.steps[-1].R[:-1]))
+    with pytest.raises(ValueError, match="start must be a Result or a pair"):
+        held.solve(1, start=3.0)
+    with pytest.raises(ValueError, match="start: R must hold rotation matrices"):
+        held.solve(1, start=(first.steps[-1].r, 2 * first.steps[-1].R))
+
+
+def test_start_from_a_result_carries_the_contact_multipliers():
+    """A pressed hairpin solved again from its converged Result: the normal
+    multipliers come with it (lambda = f_N at the active slave points), so
+    step 0 needs no Uzawa update and stays within the contact tolerance of
+    the start; from bare ``(r, R)`` Uzawa starts again from zero."""
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 40)
+    rod.clamp("start").add_force("end", [0.0, -0.6, 0.0], constant=True)
+    rod.enable_contact()
+    first = rod.solve(2)
+    again = rod.solve(1, start=first)
+    assert again.converged and again.steps[0].contact.uzawa == 0
+    assert np.abs(again.steps[0].r - first.steps[-1].r).max() <= 1e-3 * eps
+    bare = rod.solve(1, start=(first.steps[-1].r, first.steps[-1].R))
+    assert bare.steps[0].contact.uzawa >= 1

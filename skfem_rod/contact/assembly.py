@@ -131,15 +131,25 @@ def _tangent(mesh, s_elem, m_elem, P, Q, N, u, c_nn, c_proj, c_om):
 _PATTERN_CACHE = {}
 
 
+def cached_pattern(cache, mesh, ge):
+    """The pattern kept in ``cache`` if it was built for the same mesh and
+    element pairs ``ge``, else None (store a new one with
+    ``cache.update(nodes=mesh.nodes, ge=ge.copy(), out=...)``)."""
+    if (cache.get("nodes") is mesh.nodes and cache["ge"].shape == ge.shape
+            and np.array_equal(cache["ge"], ge)):
+        return cache["out"]
+    return None
+
+
 def _pattern(mesh, ge, ne):
     """CSC structure of the contact stiffness of element pairs ``ge``
     (``lo * ne + hi``) and the data position of every (pair, 3 x 3
     component, node block) value.  The last pattern is cached (the
     element pairs in contact seldom change between Newton iterations)."""
     c = _PATTERN_CACHE
-    if (c.get("nodes") is mesh.nodes and c["ge"].shape == ge.shape
-            and np.array_equal(c["ge"], ge)):
-        return c["out"]
+    hit = cached_pattern(c, mesh, ge)
+    if hit is not None:
+        return hit
     n, nn = mesh.n_dofs, mesh.n_nodes
     ng = ge.size
     nodes = np.concatenate([mesh.nodes[ge // ne], mesh.nodes[ge % ne]], axis=1)   # (ng, 8)

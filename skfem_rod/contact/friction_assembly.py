@@ -77,6 +77,7 @@ from ..element import shape_functions
 from ..rotations import hat, logm, tangent_inv
 from . import friction as law
 from .law import gap, normal_force
+from .assembly import cached_pattern
 
 
 @dataclass
@@ -133,9 +134,9 @@ def _pattern(mesh, ge, gnodes):
     pattern is cached: the element pairs in contact seldom change between
     Newton iterations."""
     c = _PATTERN_CACHE
-    if (c.get("nodes") is mesh.nodes and c["ge"].shape == ge.shape
-            and np.array_equal(c["ge"], ge)):
-        return c["out"]
+    hit = cached_pattern(c, mesh, ge)
+    if hit is not None:
+        return hit
     nn, n = mesh.n_nodes, mesh.n_dofs
     ng = ge.size
     bkey = (gnodes[:, :, None] * nn + gnodes[:, None, :]).ravel()   # (g, J, I): col, row node
