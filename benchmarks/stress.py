@@ -36,7 +36,6 @@ The case builders are imported by tests/test_stress_subset.py.
 """
 import argparse
 import datetime
-import importlib.util
 import os
 import sys
 import time
@@ -195,16 +194,6 @@ def hairpin(factor, n_elements=40, outside=False):
                 outside=outside, info=dict(factor=factor, n_elements=n_elements))
 
 
-def friction_available():
-    """True when the solver takes friction coefficients (``gamma_T`` in
-    :class:`skfem_rod.contact.ContactOptions` and a friction assembler)."""
-    import dataclasses
-    from skfem_rod.contact import ContactOptions
-    names = {f.name for f in dataclasses.fields(ContactOptions)}
-    return ("gamma_T" in names
-            and importlib.util.find_spec("skfem_rod.contact.friction_assembly") is not None)
-
-
 def hairpin_friction(gamma_T, n_elements=40):
     """The hairpin with the tangential Coulomb coefficient ``gamma_T``
     (default penalty); checked against the frictionless tip (the load
@@ -329,8 +318,7 @@ def _cases(quick=False):
     out += [twist(t, n) for n in (32, 125) for t in (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)]
     out += [twist(20.0, 2000)]
     out += [twist(20.0, 16, outside=True)]
-    if friction_available():
-        out += [hairpin_friction(g) for g in (0.0, 0.1, 0.3, 1.0)]
+    out += [hairpin_friction(g) for g in (0.0, 0.1, 0.3, 1.0)]
     return out
 
 
@@ -346,19 +334,6 @@ def _table(header, rows):
 def _short(msg, n=170):
     msg = msg.replace("|", "/")
     return msg if len(msg) <= n else msg[:n - 3] + "..."
-
-
-def friction_placeholder():
-    why = ("the friction assembler is not in this working tree" if not friction_available()
-           else "this run did not include the friction cases (--quick)")
-    return ["## friction coefficients 0 to 1\n",
-            f"**Not yet available** in this run: {why}. The pointwise Coulomb law "
-            "exists (`skfem_rod/contact/friction.py`, tests/test_friction_law.py); "
-            "no numbers are reported rather than made up. Placeholder rows:\n",
-            _table(["case", "converged", "Newton", "Uzawa", "pen/eps", "cond", "note"],
-                   [[f"hairpin, friction coefficient {m:g}", "-", "-", "-", "-", "-",
-                     "not yet available"] for m in (0.0, 0.1, 0.3, 1.0)]),
-            ""]
 
 
 def report(rows, wall, quick):
@@ -420,7 +395,8 @@ def report(rows, wall, quick):
                              "note"], trows))
         lines.append("")
     if not any(r["case"].group.startswith("friction") for r in rows):
-        lines += friction_placeholder()
+        lines += ["## friction coefficients 0 to 1\n",
+                  "Not run in this invocation.\n"]
     conv = sum(r["converged"] for r in rows)
     outside = sum(r["case"].outside for r in rows)
     lines.append("## Summary\n")

@@ -396,13 +396,6 @@ def _plot(sols, ref, path):
     return path
 
 
-def _contact_markers(res, k):
-    c = res.steps[k].contact
-    pts = res.contact_points(k)
-    states = (c.state_T if c is not None and c.friction else np.zeros(len(pts), int))
-    return pts, states
-
-
 def _render(sol, path, window_size=(900, 600)):
     import pyvista
     pyvista.OFF_SCREEN = True
@@ -410,8 +403,8 @@ def _render(sol, path, window_size=(900, 600)):
     res = sol["result"]
     k = int(np.argmax([st.load_factor for st in res.steps]))
     f = res.sample(8, k)
-    pts, states = _contact_markers(res, k)
-    render_contact_states(path, f["r"], f["R"], sol["eps"], pts, states,
+    render_contact_states(path, f["r"], f["R"], sol["eps"], res.contact_points(k),
+                          res.contact_states(k),
                           window_size=window_size,
                           title=f"tightest knot, gamma_T = {sol['gamma_T']:g}")
     return path
@@ -425,9 +418,8 @@ def _animate(sol, path, window_size):
     for k, w in enumerate(sol["rows"]):
         f = res.sample(6, k)
         configs.append((f["r"], f["R"]))
-        p, s_ = _contact_markers(res, k)
-        points.append(p)
-        states.append(s_)
+        points.append(res.contact_points(k))
+        states.append(res.contact_states(k))
         titles.append(f"d = {w['distance']:.3f}, F = {w['force']:.2f}")
     return render_animation(path, configs, sol["eps"], window_size=window_size, titles=titles,
                             contact_points=points, contact_states=states, fps=6)

@@ -136,12 +136,11 @@ def _animate(sol, path, size):
     from skfem_rod.render import render_animation
     res = sol["result"]
     configs, points, states, titles = [], [], [], []
-    for k, st in enumerate(res.steps):
+    for k in range(len(res.steps)):
         f = res.sample(6, k)
         configs.append((f["r"], f["R"]))
-        c = st.contact
         points.append(res.contact_points(k))
-        states.append(c.state_T if c.friction else np.zeros(c.s.size, int))
+        states.append(res.contact_states(k))
         titles.append(f"{sol['records'][k]['turns']:.2f} turns")
     return render_animation(path, configs, res.rod.contact.radius, window_size=size,
                             titles=titles, contact_points=points, contact_states=states,

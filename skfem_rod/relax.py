@@ -109,11 +109,14 @@ def clearance_ok(rod, r_old, r_new):
     if c is None:
         return True
     d = r_new - r_old
+    d = d - d.mean(axis=0)               # relative motion: a translation is free
     move = np.sqrt((d * d).sum(axis=1))
     floor = 0.5 * c.radius
     if 2 * move.max() <= floor:
         return True
-    pairs = cKDTree(r_old).query_pairs(2 * c.radius + 2 * move.max(), output_type="ndarray")
+    # two nodes approach each other by at most 2 max|d|, which exceeds half
+    # their clearance only if that clearance is below 4 max|d|
+    pairs = cKDTree(r_old).query_pairs(2 * c.radius + 4 * move.max(), output_type="ndarray")
     if pairs.size == 0:
         return True
     i, j = pairs[:, 0], pairs[:, 1]

@@ -497,6 +497,29 @@ class Result:
              for st in self.steps]
         return np.cumsum(d)
 
+    def contact_states(self, step=-1):
+        """Friction state of the active contact points of a step, ``(m,)``:
+        0 open (no friction), 1 stick, 2 slip -- a point slips if the
+        tangential or the rotational law slips (the laws whose coefficient
+        is positive); all 0 without friction, empty without contact.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.contact_states().shape
+        (0,)
+        """
+        c = self.steps[step].contact
+        if c is None:
+            return np.zeros(0, int)
+        if not c.friction:
+            return np.zeros(c.s.size, int)
+        opts = self.rod.contact
+        laws = [st for g, st in ((opts.gamma_T, c.state_T), (opts.gamma_R, c.state_R)) if g > 0]
+        return np.max(laws, axis=0).astype(int)
+
     def contact_points(self, step=-1):
         """Positions of the active contact (slave) points of a step, ``(m, 3)``
         (empty without contact).
@@ -553,12 +576,7 @@ class Result:
             pts = self.contact_points(step)
             if len(pts):
                 kwargs["contact_points"] = pts
-                c = self.steps[step].contact
-                if c.friction and "contact_colors" not in kwargs:
-                    # stick / slip colours: a point slips if either law slips
+                if self.steps[step].contact.friction and "contact_colors" not in kwargs:
                     from .render import contact_state_colors
-                    opts = self.rod.contact
-                    laws = [st for g, st in ((opts.gamma_T, c.state_T),
-                                             (opts.gamma_R, c.state_R)) if g > 0]
-                    kwargs["contact_colors"] = contact_state_colors(np.max(laws, axis=0))
+                    kwargs["contact_colors"] = contact_state_colors(self.contact_states(step))
         return render_rod(filename, f["r"], f["R"], radius, **kwargs)

@@ -447,11 +447,8 @@ def _carry_multipliers(system, contact):
     if contact is None or contact.s.size == 0:
         return
     s = np.ravel(system.slaves.s)          # flat slave index = multiplier index
-    i = np.searchsorted(s, contact.s)
-    i = np.clip(i, 0, s.size - 1)
-    j = np.where(np.abs(s[np.clip(i - 1, 0, s.size - 1)] - contact.s)
-                 < np.abs(s[i] - contact.s), np.clip(i - 1, 0, s.size - 1), i)
-    if np.abs(s[j] - contact.s).max() > 1e-9 * system.rod.length:
+    j = np.minimum(np.searchsorted(s, contact.s), s.size - 1)
+    if np.abs(s[j] - contact.s).max() > 1e-12 * system.rod.length:
         return                           # another mesh: start Uzawa from zero
     system.multipliers[j] = contact.force
 

@@ -19,9 +19,17 @@ def load_demo(name):
 
 def coulomb_checks(result, gamma_T, gamma_R):
     """Coulomb's law at every converged step, for every active point."""
-    for st in result.steps[1:]:
+    for k, st in enumerate(result.steps[1:], start=1):
         c = st.contact
         assert c.friction
+        # the state shown in renders: slip where a law with gamma > 0 slips
+        shown = result.contact_states(k)
+        assert shown.shape == c.state_T.shape
+        for gamma, state in ((gamma_T, c.state_T), (gamma_R, c.state_R)):
+            if gamma > 0:
+                assert np.all(shown >= state)
+        assert np.all((shown == 2) == (((c.state_T == 2) & (gamma_T > 0))
+                                        | ((c.state_R == 2) & (gamma_R > 0))))
         assert np.all(c.force >= 0)
         for gamma, f, g, state in ((gamma_T, c.force_T, c.slip_T, c.state_T),
                                    (gamma_R, c.force_R, c.slip_R, c.state_R)):

@@ -123,3 +123,23 @@ def test_start_from_a_result_carries_the_contact_multipliers():
     assert np.abs(again.steps[0].r - first.steps[-1].r).max() <= 1e-3 * eps
     bare = rod.solve(1, start=(first.steps[-1].r, first.steps[-1].R))
     assert bare.steps[0].contact.uzawa >= 1
+
+
+def test_clearance_check_sees_every_pair_that_can_close_too_far():
+    """``relax.clearance_ok`` on the hairpin (legs 4 eps apart, clearance
+    2 eps): both legs moved toward each other by 0.6 eps close the gap by
+    1.2 eps, more than half the clearance, so the move is refused; by 0.4
+    eps each (0.8 eps) it is allowed; a rigid translation by 10 eps is
+    allowed (no relative motion)."""
+    from skfem_rod.relax import clearance_ok
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 40).enable_contact()
+    r0 = rod.r0
+    side = np.where(r0[:, 1] > 2 * eps, -1.0, 1.0)          # free leg down, other leg up
+    legs = np.abs(r0[:, 1] - 2 * eps) > 1.9 * eps
+    bump = np.where(legs, np.sin(np.pi * np.clip(r0[:, 0], 0, 0.5) / 0.5) ** 2, 0.0)
+    for step, ok in ((0.6, False), (0.4, True)):           # smooth: no shear along a leg
+        r1 = r0.copy()
+        r1[:, 1] += step * eps * side * bump
+        assert clearance_ok(rod, r0, r1) is ok
+    assert clearance_ok(rod, r0, r0 + [10 * eps, 0.0, 0.0])
