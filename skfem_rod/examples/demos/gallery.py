@@ -32,7 +32,8 @@ import tempfile
 import time
 
 HERE = pathlib.Path(__file__).resolve().parent
-DOCS_IMG = HERE.parent / "docs" / "img" / "gallery"
+#: the checkout's docs/img/gallery (demos live in skfem_rod/examples/demos/)
+DOCS_IMG = HERE.parents[2] / "docs" / "img" / "gallery"
 #: Small settings for demos that do not define ``SMALL`` themselves
 #: (``{"name": dict(...)}``); empty: every demo defines its own.
 FALLBACK = {}
