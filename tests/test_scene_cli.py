@@ -529,4 +529,4 @@ def test_cli_demo(tmp_path, capsys, monkeypatch):
     assert cli.main(["demo", "quick", "--out", "fail"]) == 3
     monkeypatch.setattr(cli, "demos_dir", lambda: tmp_path / "absent")
     assert cli.main(["demo", "quick"]) == 2
-    assert "not installed with the package" in capsys.readouterr().err
+    assert "examples are missing" in capsys.readouterr().err

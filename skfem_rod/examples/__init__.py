@@ -31,9 +31,15 @@ def scenes():
     return sorted(p.stem for p in SCENES.glob("*.toml"))
 
 
-def demos():
-    """Names of the shipped demo scripts (``demos/NAME.py``), sorted."""
-    return sorted(p.stem for p in DEMOS.glob("*.py") if not p.name.startswith("_"))
+#: scripts in demos/ that are tools, not demos (gallery.py writes the docs' images)
+TOOLS = ("gallery",)
+
+
+def demos(folder=DEMOS):
+    """Names of the demo scripts in ``folder`` (default: the shipped
+    ``demos/NAME.py``), sorted; helpers (``_*.py``) and :data:`TOOLS` left out."""
+    return sorted(p.stem for p in pathlib.Path(folder).glob("*.py")
+                  if not p.name.startswith("_") and p.stem not in TOOLS)
 
 
 def names():
