@@ -16,5 +16,14 @@ from .model import Rod
 from .results import Result
 from .section import Section
 
-__all__ = ["Rod", "Section", "Result", "geometry"]
+__all__ = ["Rod", "Section", "Result", "geometry", "sweep"]
+
+
+def __getattr__(name):
+    # skfem_rod.sweep (skfem_rod.sweeps.sweep) on first use: its module is
+    # light, Dask and xarray are imported only when a sweep runs
+    if name == "sweep":
+        from .sweeps import sweep
+        return sweep
+    raise AttributeError(f"module 'skfem_rod' has no attribute {name!r}")
 __version__ = "0.1.0"

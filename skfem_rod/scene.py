@@ -511,7 +511,8 @@ ROD = {
     "n_quad": Key(Integer(1, MAX_QUAD), 3, "Gauss points per element"),
 }
 
-TOP = ("title", "rod", "section", "support", "load", "contact", "solver", "output")
+TOP = ("title", "rod", "section", "support", "load", "contact", "solver", "output",
+       "sweep")
 
 
 # ---------------------------------------------------------------------------
@@ -679,6 +680,11 @@ def _validate(data):
     if sv.get("method") == "arclength" and len(sv.get("path") or []) != 2:
         c.bad(f"solver.path: with method = \"arclength\" the path must be [0, lam_end] "
               f"(the continuation turns back by itself), got {sv.get('path')!r}")
+    if "sweep" in data:        # each swept value validated as the key it replaces
+        from .sweeps import validate_sweep
+        out["sweep"], problems = validate_sweep(
+            data["sweep"], {k: v for k, v in data.items() if k != "sweep"}, c.problems)
+        c.problems += problems
 
     if c.problems:
         raise SceneError(c.problems)

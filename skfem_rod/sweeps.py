@@ -1,0 +1,687 @@
+"""Parameter sweeps of a scene on Dask: one labelled dataset per study.
+
+A sweep solves one scene at many values of some of its keys.  The keys are
+the scene's own, written as dotted paths (``contact.gamma_T``,
+``section.E``, ``load[0].vector[2]``, ``support[1].rotation_vector[0]``);
+each value is validated exactly like the key it replaces (the scene is
+validated with the value put in), so a sweep accepts what the scene
+accepts.  In a TOML scene::
+
+    [sweep]
+    mode = "grid"                          # or "zip": the lists side by side
+    "contact.gamma_T" = [0.0, 0.1, 0.2, 0.3]
+    "load[0].vector[0]" = [1.0, 2.0]
+
+and in Python ``skfem_rod.sweep(scene, {"contact.gamma_T": [0, 0.1]})`` (this module is
+:mod:`skfem_rod.sweeps`).
+
+Execution is on dask.distributed: an in-process ``LocalCluster`` (worker
+processes, one thread each) by default, or any running cluster by its
+scheduler address.  Nothing is lost: each finished point is written to
+``points/<key>.nc`` as it finishes (temporary file + ``os.replace``), where
+``key`` is a hash of the point's whole validated scene, so a re-run skips
+the points already done; a point that fails (the solve stops, or raises)
+is recorded with its message and the steps it converged; a point whose
+worker dies is re-run by the scheduler (up to its ``allowed-failures``).
+
+The result is an :class:`xarray.Dataset` with one dimension per swept key
+(grid) or one ``point`` dimension (zip), plus ``step`` (the load steps,
+padded with NaN, or -1 for counts, past the steps a point converged),
+``support`` (the ``[[support]]`` entries) and ``xyz``; it is written to
+``sweep.nc`` (netCDF, h5netcdf engine).  Format and study: docs/sweep.md.
+
+Dask, xarray and h5netcdf are the optional extra ``sweep``
+(``pip install skfem_rod[sweep]``); they are imported only when a sweep
+runs.
+"""
+import copy
+import hashlib
+import itertools
+import json
+import logging
+import math
+import numbers
+import os
+import re
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["sweep", "sweep_points", "run_point", "open_sweep", "SweepPoint"]
+
+log = logging.getLogger("skfem_rod.sweep")
+
+#: version of the point files; part of every point's key
+FORMAT = 1
+MODES = ("grid", "zip")
+#: most points of one sweep
+MAX_POINTS = 100_000
+#: files of a sweep directory
+POINTS_DIR, DATASET = "points", "sweep.nc"
+#: fill value of the integer step variables past a point's last step
+MISSING = -1
+
+_TOKEN = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")
+
+
+# ---------------------------------------------------------------------------
+# keys: "load[0].vector[2]" -> ["load", 0, "vector", 2]
+# ---------------------------------------------------------------------------
+def parse_key(key):
+    """The path of a dotted key as a list of names and indices, or None."""
+    out = []
+    for part in str(key).split("."):
+        m = _TOKEN.fullmatch(part)
+        if m is None:
+            return None
+        out.append(m.group(1))
+        out += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
+    return out
+
+
+def _get(data, path):
+    for p in path:
+        data = data[p]
+    return data
+
+
+def _put(data, path, value):
+    """A deep copy of ``data`` with ``value`` at ``path``; raises KeyError
+    (a table or entry on the way is missing) or IndexError."""
+    data = copy.deepcopy(data)
+    parent = _get(data, path[:-1])
+    last = path[-1]
+    if isinstance(last, int):
+        if not isinstance(parent, list):
+            raise KeyError(f"{_show_path(path[:-1])} is not an array")
+        parent[last] = value              # IndexError past its end
+    else:
+        if not isinstance(parent, dict):
+            raise KeyError(f"{_show_path(path[:-1])} is not a table")
+        parent[last] = value
+    return data
+
+
+def _show_path(path):
+    s = ""
+    for p in path:
+        s += f"[{p}]" if isinstance(p, int) else (("." if s else "") + p)
+    return s
+
+
+def _flatten(table, prefix=""):
+    """Nested tables (TOML's unquoted ``contact.gamma_T = ...``) as dotted
+    keys; the reserved ``mode`` stays."""
+    out = {}
+    for k, v in table.items():
+        name = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, dict) and not (prefix == "" and k == "mode"):
+            out.update(_flatten(v, name))
+        else:
+            if name in out:
+                raise ValueError(name)
+            out[name] = v
+    return out
+
+
+def _strip(d):
+    """Validated scene data back to a scene table (no None: the defaults)."""
+    if isinstance(d, dict):
+        return {k: _strip(v) for k, v in d.items() if v is not None}
+    if isinstance(d, list):
+        return [_strip(v) for v in d]
+    return d
+
+
+# ---------------------------------------------------------------------------
+# validation (called by skfem_rod.scene for the [sweep] table)
+# ---------------------------------------------------------------------------
+def validate_sweep(table, base, known=()):
+    """Check a ``[sweep]`` table against the scene ``base`` (a scene table
+    without ``sweep``); returns ``(sweep, problems)``, ``sweep`` being
+    ``{"mode": ..., "parameters": {key: [values]}}`` with every value
+    normalized as its key is.  Each value is validated by validating
+    ``base`` with the value put in: the problems it adds to ``known``
+    (those of ``base`` itself) are the value's.
+    """
+    from .scene import SceneError, _show, _validate
+    problems = []
+    if not isinstance(table, dict):
+        return None, [f"sweep = {_show(table)}: expected a table [sweep] of dotted scene "
+                      'keys and their values, e.g. "contact.gamma_T" = [0.0, 0.1]']
+    try:
+        flat = _flatten(table)
+    except ValueError as err:
+        return None, [f'sweep."{err}" is given twice (as a dotted key and a nested table)']
+    mode = flat.pop("mode", "grid")
+    if mode not in MODES:
+        problems.append(f"sweep.mode = {_show(mode)}: expected one of "
+                        + ", ".join(json.dumps(m) for m in MODES))
+    if not flat:
+        problems.append('sweep has no parameters: expected dotted scene keys with arrays '
+                        'of values, e.g. "contact.gamma_T" = [0.0, 0.1]')
+    known = set(known)
+    params = {}
+    for key, values in flat.items():
+        where = f'sweep."{key}"'
+        path = parse_key(key)
+        if path is None or len(path) < 2:
+            problems.append(f"{where} is not a scene key: expected a dotted path into the "
+                            'scene such as "contact.gamma_T", "section.E" or '
+                            '"load[0].vector[2]"')
+            continue
+        if isinstance(values, np.ndarray):
+            values = values.tolist()
+        if not isinstance(values, (list, tuple)) or not values:
+            problems.append(f"{where} = {_show(values)}: expected a non-empty array of "
+                            "values of " + _show_path(path))
+            continue
+        out, ok = [], True
+        for i, v in enumerate(values):
+            try:
+                new = _validate(_put(base, path, v))
+            except (KeyError, IndexError, TypeError) as err:
+                problems.append(f"{where}: the scene has no {_show_path(path)} to sweep "
+                                f"({err.args[0] if err.args else 'missing'}); sweep a key "
+                                "of a table or entry the scene has")
+                ok = False
+                break
+            except SceneError as err:
+                mine = [p for p in err.problems if p not in known]
+                problems += [f"{where}[{i}]: {p}" for p in mine]
+                ok = ok and not mine
+                continue
+            out.append(_get(new, path))
+        if not ok:
+            continue
+        labels = [_label(v) for v in out]
+        if len(set(labels)) != len(labels):
+            problems.append(f"{where} = {_show(values)}: the values must differ")
+            continue
+        params[key] = out
+    if mode == "zip" and len({len(v) for v in params.values()}) > 1:
+        problems.append("sweep: with mode = \"zip\" every key needs as many values ("
+                        + ", ".join(f'"{k}": {len(v)}' for k, v in params.items()) + ")")
+    n = _count(params, mode)
+    if n > MAX_POINTS:
+        problems.append(f"sweep: {n} points, more than {MAX_POINTS}; split the study")
+    return dict(mode=mode, parameters=params), problems
+
+
+def _count(params, mode):
+    if not params:
+        return 0
+    return len(next(iter(params.values()))) if mode == "zip" \
+        else math.prod(len(v) for v in params.values())
+
+
+def _label(v):
+    """A coordinate label: the value itself if it is a scalar, else JSON."""
+    if isinstance(v, (bool, str, numbers.Real)):
+        return v
+    return json.dumps(v)
+
+
+# ---------------------------------------------------------------------------
+# points
+# ---------------------------------------------------------------------------
+@dataclass
+class SweepPoint:
+    """One point of a sweep.
+
+    index : tuple of int
+        Its place in the dataset (one index per key in a grid, one in zip).
+    values : dict
+        Swept key -> value.
+    data : dict
+        The point's scene table (the scene with the values put in).
+    key : str
+        Hash of the point's validated scene: the name of its point file.
+    """
+    index: tuple
+    values: dict
+    data: dict
+    key: str
+
+
+def point_key(data):
+    """Stable hash of a validated scene's content (what the solve sees:
+    not its title, outputs or sweep)."""
+    content = {k: v for k, v in data.items() if k not in ("title", "output", "sweep")}
+    text = json.dumps([FORMAT, content], sort_keys=True, default=float)
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def _base(scene):
+    """(validated data, name, source) of a Scene, scene file or scene table."""
+    from .scene import Scene, load_scene
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    return scene.data, scene.name, scene.source
+
+
+def sweep_points(scene, parameters=None, mode=None):
+    """The points of a sweep, in dataset order.
+
+    Parameters
+    ----------
+    scene : Scene, str, os.PathLike or dict
+        A loaded scene, a scene file or a scene table.
+    parameters : dict, optional
+        Dotted key -> values (replaces the scene's ``[sweep]`` table).
+    mode : {"grid", "zip"}, optional
+        Default: the ``[sweep]`` table's, else ``"grid"``.
+
+    Returns
+    -------
+    points : list of SweepPoint
+    spec : dict
+        ``{"mode", "parameters"}`` (validated values).
+
+    Examples
+    --------
+    >>> pts, spec = sweep_points({
+    ...     "rod": {"geometry": {"type": "straight", "length": 1.0}, "n_elements": 4},
+    ...     "section": {"E": 1e7, "nu": 0.3, "radius": 0.01},
+    ...     "support": [{"where": "start", "kind": "clamp"}],
+    ...     "load": [{"kind": "force", "where": "end", "vector": [0.0, 0.0, -1.0]}]},
+    ...     {"section.E": [1e7, 2e7], "load[0].vector[2]": [-1, -2, -3]})
+    >>> len(pts), pts[5].index, pts[5].values
+    (6, (1, 2), {'section.E': 20000000.0, 'load[0].vector[2]': -3.0})
+    """
+    from .scene import SceneError, _validate
+    data, _, _ = _base(scene)
+    base = _strip({k: v for k, v in data.items() if k != "sweep"})
+    if parameters is None:
+        spec = data.get("sweep")
+        if spec is None:
+            raise SceneError(["the scene has no [sweep] table and no parameters were "
+                              'given: add [sweep] with e.g. "contact.gamma_T" = [0.0, 0.1]'])
+        spec = dict(spec, mode=mode or spec["mode"])
+        if spec["mode"] != data["sweep"]["mode"]:     # re-check the zip lengths
+            spec, problems = validate_sweep(dict(spec["parameters"], mode=spec["mode"]), base)
+            if problems:
+                raise SceneError(problems)
+    else:
+        spec, problems = validate_sweep(dict(parameters, mode=mode or "grid"), base)
+        if problems:
+            raise SceneError(problems)
+    keys = list(spec["parameters"])
+    values = [spec["parameters"][k] for k in keys]
+    if spec["mode"] == "grid":
+        combos = [(idx, [v[i] for v, i in zip(values, idx)])
+                  for idx in itertools.product(*(range(len(v)) for v in values))]
+    else:
+        combos = [((i,), [v[i] for v in values]) for i in range(len(values[0]))]
+    points = []
+    for idx, vals in combos:
+        d = base
+        for k, v in zip(keys, vals):
+            d = _put(d, parse_key(k), v)
+        points.append(SweepPoint(tuple(idx), dict(zip(keys, vals)), d,
+                                 point_key(_validate(d))))
+    return points, spec
+
+
+# ---------------------------------------------------------------------------
+# one point (runs on a worker): plain arrays in, plain arrays out
+# ---------------------------------------------------------------------------
+def _step_record(result, k, sup):
+    rod, st = result.rod, result.steps[k]
+    s, r, R = result.nodes(k)
+    force = np.full((len(sup), 3), np.nan)
+    moment = np.full((len(sup), 3), np.nan)
+    for j, item in enumerate(sup):
+        f, m = st.reactions[rod.node(item["where"])]
+        force[j], moment[j] = f, m
+    end = rod.node("end")
+    torque = (float(np.dot(st.reactions[end][1], R[-1][:, 2]))
+              if end in st.reactions else np.nan)
+    try:
+        t = result.topology(k)
+        topo = (t.twist, t.writhe, t.link)
+    except Exception:                     # noqa: BLE001  (a figure, not the solve)
+        topo = (np.nan,) * 3
+    c = st.contact
+    return dict(
+        load_factor=st.load_factor, time=st.time, tip_position=r[-1],
+        reaction_force=force, reaction_moment=moment, end_torque=torque,
+        twist=topo[0], writhe=topo[1], link=topo[2], energy=st.energy,
+        iterations=(c.newton_total if c is not None else st.iterations),
+        lowest_eigenvalue=(np.nan if st.lowest_eigenvalue is None
+                           else float(st.lowest_eigenvalue)),
+        active_contacts=(int(c.force.size) if c is not None else 0),
+        penetration=(float(c.penetration) if c is not None else 0.0))
+
+
+#: the per-step variables: name -> (extra dims, fill, long name)
+STEP_VARIABLES = {
+    "load_factor": ((), np.nan, "load factor"),
+    "time": ((), np.nan, "pseudo-time along the load path"),
+    "tip_position": (("xyz",), np.nan, "position of the end s = L"),
+    "reaction_force": (("support", "xyz"), np.nan,
+                       "force the support's node exerts on the rod (spatial)"),
+    "reaction_moment": (("support", "xyz"), np.nan,
+                        "moment the support's node exerts on the rod, about the node"),
+    "end_torque": ((), np.nan, "reaction moment at the end about the end tangent d3 "
+                               "(NaN when the end is not supported)"),
+    "twist": ((), np.nan, "twist (turns)"),
+    "writhe": ((), np.nan, "writhe (turns)"),
+    "link": ((), np.nan, "link = twist + writhe (turns)"),
+    "energy": ((), np.nan, "strain energy"),
+    "dissipation": ((), np.nan, "friction work dissipated since step 0 (cumulative)"),
+    "iterations": ((), MISSING, "Newton iterations (all Uzawa passes)"),
+    "lowest_eigenvalue": ((), np.nan, "lowest eigenvalue of the symmetrized tangent "
+                                      "(solver.stability = true; NaN otherwise)"),
+    "active_contacts": ((), MISSING, "active contact points"),
+    "penetration": ((), np.nan, "largest contact penetration"),
+}
+
+
+def run_point(data, name="scene", values=None, on_step=None):
+    """Load and solve one point's scene table; returns its record: the
+    per-step arrays of :data:`STEP_VARIABLES` (converged steps only) and
+    ``converged``, ``message``, ``n_steps``, ``wall_time``.  Never raises:
+    a scene the loader rejects, a solve that stops or an exception are
+    recorded in ``message`` (with the steps converged before).
+
+    ``on_step(values, result, k)``, if given, is called after each
+    converged step ``k`` (on the worker).
+    """
+    from .scene import load_scene
+    t0 = time.perf_counter()
+    kept = {}
+
+    def callback(result, k):
+        kept["result"] = result
+        if on_step is not None:
+            on_step(values, result, k)
+
+    converged, result = False, None
+    try:
+        scene = load_scene(data, name=name)
+        result = scene.solve(callback=callback)
+        converged, message = bool(result.converged), str(result.message)
+        data = scene.data
+    except Exception as err:              # noqa: BLE001  (recorded, the sweep goes on)
+        result = kept.get("result")
+        message = f"{type(err).__name__}: {err}"
+    rows = []
+    if result is not None and result.steps:
+        sup = data.get("support", [])
+        rows = [_step_record(result, k, sup) for k in range(len(result.steps))]
+        diss = result.dissipated_energy()
+        for row, d in zip(rows, diss):
+            row["dissipation"] = float(d)
+    rec = {name_: np.array([row[name_] for row in rows]) for name_ in STEP_VARIABLES}
+    rec.update(converged=converged, message=message, n_steps=len(rows),
+               wall_time=time.perf_counter() - t0)
+    return rec
+
+
+# ---------------------------------------------------------------------------
+# point files
+# ---------------------------------------------------------------------------
+def point_dataset(rec, point, n_support):
+    """One point's record as an xarray Dataset (dims step, support, xyz)."""
+    import xarray as xr
+    n = rec["n_steps"]
+    out = {}
+    for name, (dims, fill, long) in STEP_VARIABLES.items():
+        shape = (n,) + tuple(3 if d == "xyz" else n_support for d in dims)
+        a = np.asarray(rec[name])
+        a = a.reshape(shape) if a.size else np.full(shape, fill)
+        if fill is MISSING:
+            a = a.astype(np.int64)
+        out[name] = (("step",) + dims, a, {"long_name": long})
+    ds = xr.Dataset(out)
+    ds["converged"] = ((), bool(rec["converged"]))
+    ds["message"] = ((), str(rec["message"]))
+    ds["n_steps"] = ((), int(n))
+    ds["wall_time"] = ((), float(rec["wall_time"]), {"units": "s"})
+    ds.attrs.update(key=point.key, values=json.dumps(point.values),
+                    index=json.dumps(list(point.index)), format=FORMAT)
+    return ds
+
+
+def write_point(ds, folder, key):
+    """Write a point file atomically (temporary file, then os.replace)."""
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, key + ".nc")
+    tmp = os.path.join(folder, f".{key}.{os.getpid()}.tmp")
+    ds.to_netcdf(tmp, engine="h5netcdf")
+    os.replace(tmp, path)
+    return path
+
+
+def _read_point(path):
+    import xarray as xr
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        return ds.load()
+
+
+def finished_keys(folder):
+    """Keys of the point files in ``folder`` (temporary files ignored)."""
+    if not os.path.isdir(folder):
+        return set()
+    return {f[:-3] for f in os.listdir(folder) if f.endswith(".nc") and not f.startswith(".")}
+
+
+# ---------------------------------------------------------------------------
+# the dataset
+# ---------------------------------------------------------------------------
+def assemble(points, spec, records, meta):
+    """The sweep's Dataset from the points' Datasets ``records`` (key ->
+    Dataset; a point without one is marked not run)."""
+    import xarray as xr
+    keys = list(spec["parameters"])
+    grid = spec["mode"] == "grid"
+    shape = (tuple(len(v) for v in spec["parameters"].values()) if grid
+             else (len(points),))
+    pdims = tuple(keys) if grid else ("point",)
+    n_steps = max([int(ds["n_steps"]) for ds in records.values()] + [1])
+    n_sup = max([ds.sizes.get("support", 0) for ds in records.values()] + [0])
+    data = {}
+    for name, (dims, fill, long) in STEP_VARIABLES.items():
+        full = shape + (n_steps,) + tuple(3 if d == "xyz" else n_sup for d in dims)
+        arr = np.full(full, fill, dtype=np.int64 if fill is MISSING else float)
+        for p in points:
+            ds = records.get(p.key)
+            if ds is not None and int(ds["n_steps"]):
+                v = ds[name].values
+                arr[p.index][tuple(slice(0, s) for s in v.shape)] = v
+        data[name] = (pdims + ("step",) + dims, arr, {"long_name": long})
+    conv = np.zeros(shape, bool)
+    msg = np.full(shape, "not run", dtype=object)
+    nst = np.zeros(shape, np.int64)
+    wall = np.full(shape, np.nan)
+    pkey = np.full(shape, "", dtype=object)
+    for p in points:
+        pkey[p.index] = p.key
+        ds = records.get(p.key)
+        if ds is not None:
+            conv[p.index] = bool(ds["converged"])
+            msg[p.index] = str(ds["message"].values)
+            nst[p.index] = int(ds["n_steps"])
+            wall[p.index] = float(ds["wall_time"])
+    data.update(converged=(pdims, conv, {"long_name": "the solve reached the end of its "
+                                                     "load path"}),
+                message=(pdims, msg.astype(str), {"long_name": "how the solve ended"}),
+                n_steps=(pdims, nst, {"long_name": "converged steps (step 0 included)"}),
+                wall_time=(pdims, wall, {"units": "s"}),
+                point_key=(pdims, pkey.astype(str), {"long_name": "point file name"}))
+    coords = {"step": np.arange(n_steps), "xyz": ["x", "y", "z"],
+              "support": np.arange(n_sup)}
+    for k, vals in spec["parameters"].items():
+        lab = [_label(v) for v in vals]
+        coords[k] = (k, lab) if grid else ("point", lab)
+    if not grid:
+        coords["point"] = np.arange(len(points))
+    ds = xr.Dataset(data, coords=coords)
+    ds.attrs.update(meta)
+    ds.attrs.update(mode=spec["mode"], parameters=json.dumps(keys),
+                    fill=f"steps past n_steps: NaN, counts {MISSING}")
+    return ds
+
+
+def open_sweep(path):
+    """Read a sweep dataset (``sweep.nc``, or the directory holding it)."""
+    import xarray as xr
+    if os.path.isdir(path):
+        path = os.path.join(path, DATASET)
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        return ds.load()
+
+
+# ---------------------------------------------------------------------------
+# the sweep
+# ---------------------------------------------------------------------------
+def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers=None,
+          resume=True, progress=None, on_step=None):
+    """Solve a scene at every point of a parameter sweep on Dask.
+
+    Parameters
+    ----------
+    scene : Scene, str, os.PathLike or dict
+        A loaded scene, a scene file or a scene table.
+    parameters : dict, optional
+        Dotted scene key -> values, e.g. ``{"contact.gamma_T": [0, 0.1]}``
+        (default: the scene's ``[sweep]`` table).
+    mode : {"grid", "zip"}, optional
+        Every combination (default), or the i-th values together.
+    out : str, optional
+        Directory of ``points/`` and ``sweep.nc`` (default: the scene's
+        output directory + ``/sweep``).
+    scheduler : str or distributed.Client, optional
+        A running cluster (``"tcp://host:8786"``) or client; default an
+        in-process ``LocalCluster`` of ``n_workers`` processes with one
+        thread each.
+    n_workers : int, optional
+        Default: the number of CPUs, at most the points to run.
+    resume : bool
+        Skip the points whose file is in ``out/points`` (default).
+    progress : callable, optional
+        ``progress(done, total, point, record)`` after each point (also
+        logged to the ``skfem_rod.sweep`` logger).
+    on_step : callable, optional
+        ``on_step(values, result, k)`` after each converged step, on the
+        worker.
+
+    Returns
+    -------
+    xarray.Dataset
+        Also written to ``out/sweep.nc``.
+
+    Examples
+    --------
+    >>> ds = sweep("scenes/cantilever_sweep.toml", n_workers=2)   # doctest: +SKIP
+    >>> ds.tip_position.sel(xyz="z").isel(step=-1)                 # doctest: +SKIP
+    """
+    from .scene import Scene, load_scene
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    if n_workers is not None and not (isinstance(n_workers, int) and n_workers >= 1):
+        raise ValueError(f"n_workers must be an integer >= 1, got {n_workers!r}")
+    points, spec = sweep_points(scene, parameters, mode)
+    out = sweep_directory(scene, out)
+    folder = os.path.join(out, POINTS_DIR)
+    os.makedirs(folder, exist_ok=True)
+    for f in os.listdir(folder):           # temporaries of an interrupted run
+        if f.endswith(".tmp"):
+            try:
+                os.remove(os.path.join(folder, f))
+            except OSError:
+                pass
+    done = finished_keys(folder) if resume else set()
+    todo, seen = [], set()
+    for p in points:
+        if p.key not in done and p.key not in seen:
+            todo.append(p)
+            seen.add(p.key)
+    n_sup = len(scene.data["support"])
+    total = len(points)
+    log.info("%s: %d points, %d already done, %d to run", scene.name, total,
+             total - len(todo), len(todo))
+    failed_runs = {}
+    if todo:
+        failed_runs = _run(todo, scene.name, folder, n_sup, scheduler, n_workers,
+                           progress, on_step, total - len(todo), total)
+    records = {}
+    for p in points:
+        path = os.path.join(folder, p.key + ".nc")
+        if p.key in failed_runs:
+            records[p.key] = failed_runs[p.key]
+        elif os.path.exists(path):
+            records[p.key] = _read_point(path)
+    meta = dict(scene=scene.name, title=scene.title, source=str(scene.source or ""),
+                scene_data=json.dumps(scene.data, default=float))
+    ds = assemble(points, spec, records, meta)
+    tmp = os.path.join(out, f".{DATASET}.{os.getpid()}.tmp")
+    ds.to_netcdf(tmp, engine="h5netcdf")
+    os.replace(tmp, os.path.join(out, DATASET))
+    return ds
+
+
+def sweep_directory(scene, out=None):
+    """Where a sweep of ``scene`` writes: ``out``, or the scene's output
+    directory + ``/sweep``."""
+    return os.fspath(out) if out is not None else os.path.join(scene.output_directory(),
+                                                                "sweep")
+
+
+def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, on_step, done, total):
+    """Run the points on Dask, writing each as it finishes; returns the
+    Datasets of the points lost with their workers (not written: a re-run
+    tries them again)."""
+    from dask.distributed import Client, LocalCluster, as_completed
+    from distributed.scheduler import KilledWorker
+    cluster = None
+    if scheduler is None:
+        n = n_workers or min(os.cpu_count() or 1, len(todo))
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+    elif isinstance(scheduler, str):
+        client = Client(scheduler)
+    else:
+        client = scheduler
+    lost = {}
+    try:
+        futures = {client.submit(run_point, p.data, name, p.values, on_step,
+                                 key=f"skfem-rod-point-{p.key}", pure=False): p
+                   for p in todo}
+        for fut in as_completed(futures):
+            p = futures[fut]
+            try:
+                rec = fut.result()
+            except KilledWorker as err:
+                rec = dict({k: [] for k in STEP_VARIABLES}, converged=False, n_steps=0,
+                           wall_time=np.nan, message=f"the workers running this point "
+                                                     f"died: {err}")
+                lost[p.key] = point_dataset(rec, p, n_sup)
+            else:
+                write_point(point_dataset(rec, p, n_sup), folder, p.key)
+            done += 1
+            fut.release()
+            _report(done, total, p, rec)
+            if progress is not None:
+                progress(done, total, p, rec)
+    finally:
+        if client is not scheduler:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    return lost
+
+
+def _report(done, total, point, rec):
+    log.info(progress_line(done, total, point, rec))
+
+
+def progress_line(done, total, point, rec):
+    """One line per finished point (logged to ``skfem_rod.sweep``)."""
+    vals = "  ".join(f"{k} = {_label(v)}" for k, v in point.values.items())
+    state = "converged" if rec["converged"] else "stopped: " + rec["message"]
+    return (f"[{done:{len(str(total))}d}/{total}] {vals}  {state}  "
+            f"({rec['n_steps']} steps, {rec['wall_time']:.2f} s)")
