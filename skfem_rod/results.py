@@ -82,7 +82,7 @@ class Result:
     (True, 3)
     >>> result.message
     'converged: 2 steps to the end of the load path (load factor 1)'
-    >>> tip = result.position(1.0)[0]          # at any arclength and step
+    >>> tip = result.position(1.0)          # at any arclength and step
     """
 
     def __init__(self, rod):
@@ -265,7 +265,8 @@ class Result:
         Parameters
         ----------
         s : float or array_like
-            Arclengths in ``[0, length]``.
+            Arclengths in ``[0, length]``; for a scalar ``s`` every field
+            drops its leading axis (``r`` is ``(3,)``, ``R`` is ``(3, 3)``).
         step : int, default -1
 
         Examples
@@ -273,11 +274,15 @@ class Result:
         >>> from skfem_rod import Rod, Section, geometry
         >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
         >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.evaluate(0.5)["m"].shape
+        (3,)
         >>> f = result.evaluate([0.25, 0.75])
         >>> np.round(f["n"], 8) + 0.0                  # the tip load, carried along the rod
         array([[0.  , 0.01, 0.  ],
                [0.  , 0.01, 0.  ]])
         """
+        if np.ndim(s) == 0:                                         # scalar in, scalar out
+            return {k: v[0] for k, v in self.evaluate([s], step).items()}
         mesh, rod = self.rod.mesh, self.rod
         s = np.atleast_1d(np.asarray(s, dtype=float))
         e, xi = mesh.locate(s)
@@ -321,27 +326,28 @@ class Result:
         return eps, loc.Rr[:, None] @ Lam, np.einsum("nkI,nIi->nki", N, r[nodes])
 
     def position(self, s, step=-1):
-        """Positions at arclengths ``s``, ``(n, 3)``.
+        """Positions at arclengths ``s``, ``(n, 3)`` (``(3,)`` for a scalar ``s``).
 
         Examples
         --------
         >>> from skfem_rod import Rod, Section, geometry
         >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
         >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
-        >>> result.position([0.0, 1.0]).shape
-        (2, 3)
+        >>> result.position([0.0, 1.0]).shape, result.position(1.0).shape
+        ((2, 3), (3,))
         """
         return self.evaluate(s, step)["r"]
 
     def frame(self, s, step=-1):
-        """Rotations (columns ``d1, d2, d3``) at arclengths ``s``, ``(n, 3, 3)``.
+        """Rotations (columns ``d1, d2, d3``) at arclengths ``s``, ``(n, 3, 3)``
+        (``(3, 3)`` for a scalar ``s``).
 
         Examples
         --------
         >>> from skfem_rod import Rod, Section, geometry
         >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
         >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
-        >>> R = result.frame(1.0)[0]
+        >>> R = result.frame(1.0)
         >>> bool(np.allclose(R.T @ R, np.eye(3)))
         True
         """

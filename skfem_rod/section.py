@@ -14,14 +14,17 @@ from .validation import positive
 _NAMES = ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Section:
     """Section stiffness (and radius, used by contact and rendering).
 
     Parameters
     ----------
     EA, GA1, GA2, EI1, EI2, GJ : float
-        Axial, shear, bending and torsional stiffnesses (all > 0).
+        Axial, shear, bending and torsional stiffnesses (all > 0), by
+        keyword only: ``Section(EA=..., GA1=..., GA2=..., EI1=..., EI2=...,
+        GJ=...)`` (the stiffness matrix :attr:`C` orders them ``GA1, GA2,
+        EA, EI1, EI2, GJ``, so a positional order would be a trap).
     radius : float, optional
         Radius of the circular cross-section (the paper's ``eps``).
     matrix : array (6, 6), optional
@@ -41,6 +44,16 @@ class Section:
     GJ: float
     radius: float = None
     matrix: np.ndarray = None
+
+    def __new__(cls, *args, **kwargs):
+        if args:
+            raise TypeError(
+                f"Section takes its stiffnesses by keyword, got {len(args)} positional "
+                "argument(s): write Section(EA=..., GA1=..., GA2=..., EI1=..., EI2=..., "
+                "GJ=..., radius=...) (the matrix C orders them GA1, GA2, EA, EI1, EI2, "
+                "GJ), or use Section.circle(E=..., nu=..., radius=...) or "
+                "Section.from_matrix(C)")
+        return super().__new__(cls)
 
     def __post_init__(self):
         for n in _NAMES:
@@ -132,7 +145,7 @@ class Section:
         if C.shape != (6, 6):
             raise ValueError(f"matrix must be 6 x 6, got shape {C.shape}")
         d = np.diag(C)
-        return cls(*(d[[2, 0, 1, 3, 4, 5]]), radius=radius, matrix=C)
+        return cls(**dict(zip(_NAMES, d)), radius=radius, matrix=C)
 
     @property
     def C(self):

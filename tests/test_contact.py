@@ -121,7 +121,7 @@ def test_broad_phase_candidates_grow_linearly():
     eps = 0.001            # turns 2.2 eps apart: L / eps ~ 6300, h >~ eps
     shape = geometry.helix(radius=0.1, pitch=2.2 * eps, turns=10)
     for n in sizes:
-        rod = Rod(shape, Section(1, 1, 1, 1, 1, 1, radius=eps), n)
+        rod = Rod(shape, Section(EA=1, GA1=1, GA2=1, EI1=1, EI2=1, GJ=1, radius=eps), n)
         sl = slave_points(rod.mesh, 3)
         pairs = search(rod.mesh, rod.r0, sl, reach=3 * eps, exclusion=np.pi * eps)
         counts.append(pairs.n_candidates)

@@ -11,7 +11,7 @@ from skfem_rod.contact.search import project, search, slave_points
 
 EPS = 1.0                       # contact radius (lengths in units of eps)
 REACH, EXCL = 3 * EPS, np.pi * EPS
-SEC = Section(1, 1, 1, 1, 1, 1, radius=EPS)
+SEC = Section(EA=1, GA1=1, GA2=1, EI1=1, EI2=1, GJ=1, radius=EPS)
 
 
 def plect_rod(n, ply_angle=0.05, turns=4):

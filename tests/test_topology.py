@@ -428,7 +428,7 @@ def test_result_topology_of_a_twisted_straight_rod():
     times about its axis stays straight: Tw = Lk = 3 lam, Wr = 0 along the
     load path (partial turns included); the closed ribbon links 3 times."""
     from skfem_rod import Rod, Section, geometry
-    rod = Rod(geometry.straight(1.0), Section(1e4, 1e4, 1e4, 1, 1, 0.8), 16)
+    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1, EI2=1, GJ=0.8), 16)
     rod.clamp("start").pin("end").prescribe_rotation("end", [2 * np.pi * 3, 0, 0])
     res = rod.solve(4)
     assert res.converged

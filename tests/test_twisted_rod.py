@@ -26,7 +26,7 @@ def test_constant_load_is_a_preload():
     """A constant tension is on in the reference state already and stays
     while a proportional one ramps: x_end = L (1 + (T + lam F) / EA) exactly."""
     EA, L, T, F = 1e3, 2.0, 3.0, 5.0
-    rod = Rod(geometry.straight(L), Section(EA, 1e3, 1e3, 1.0, 1.0, 1.0), 4)
+    rod = Rod(geometry.straight(L), Section(EA=EA, GA1=1e3, GA2=1e3, EI1=1.0, EI2=1.0, GJ=1.0), 4)
     rod.clamp("start")
     rod.add_force("end", [T, 0.0, 0.0], constant=True)
     rod.add_force("end", [F, 0.0, 0.0])
@@ -46,7 +46,7 @@ def test_constant_load_is_a_preload():
 
 
 def test_constant_flag_must_be_boolean():
-    rod = Rod(geometry.straight(1.0), Section(1e3, 1e3, 1e3, 1.0, 1.0, 1.0), 2)
+    rod = Rod(geometry.straight(1.0), Section(EA=1e3, GA1=1e3, GA2=1e3, EI1=1.0, EI2=1.0, GJ=1.0), 2)
     with pytest.raises(ValueError, match="constant must be True or False, got 'yes'"):
         rod.add_force("end", [1.0, 0.0, 0.0], constant="yes")
     with pytest.raises(ValueError, match="constant"):
@@ -54,7 +54,7 @@ def test_constant_flag_must_be_boolean():
 
 
 def test_solver_snap_option_is_validated():
-    rod = Rod(geometry.straight(1.0), Section(1e3, 1e3, 1e3, 1.0, 1.0, 1.0), 2)
+    rod = Rod(geometry.straight(1.0), Section(EA=1e3, GA1=1e3, GA2=1e3, EI1=1.0, EI2=1.0, GJ=1.0), 2)
     rod.clamp("start")
     with pytest.raises(ValueError, match="snap must be 'cut' or 'relax', got 'jump'"):
         rod.solve(1, snap="jump")
@@ -197,7 +197,7 @@ def test_unstable_step_is_pushed_off_and_relaxed_onto_the_elastica():
     from scipy.special import ellipk
     EI, L, ratio = 1.0, 1.0, 1.5
     P = ratio * np.pi ** 2 * EI / (4 * L ** 2)
-    rod = Rod(geometry.straight(L), Section(1e7, 1e7, 1e7, EI, EI, 1.0), 8)
+    rod = Rod(geometry.straight(L), Section(EA=1e7, GA1=1e7, GA2=1e7, EI1=EI, EI2=EI, GJ=1.0), 8)
     rod.clamp("start").add_force("end", [-P, 0.0, 0.0])
     plain = rod.solve(1, stability=True)
     assert plain.converged and plain.steps[-1].lowest_eigenvalue < 0   # straight, unstable

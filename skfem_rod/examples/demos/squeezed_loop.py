@@ -47,8 +47,8 @@ def build(rho=1.0, delta=0.4, radius=0.02, force=30.0, n_elements=48, penalty_fa
     if n_elements % 4:
         raise ValueError(f"n_elements must be a multiple of 4, got {n_elements}")
     angle = 2 * np.pi - delta
-    rod = Rod(geometry.arc(rho, angle), Section(EA, EA, EA, B, B, GJ, radius=radius),
-              n_elements)
+    section = Section(EA=EA, GA1=EA, GA2=EA, EI1=B, EI2=B, GJ=GJ, radius=radius)
+    rod = Rod(geometry.arc(rho, angle), section, n_elements)
     rod.clamp("start").clamp("end")
     L = rod.length
     # the symmetry axis passes through the centre (0, rho) and the point at

@@ -73,7 +73,8 @@ def build(leg=1.0, radius=0.02, separation=4.0, tension=10.0, turns=3.0, n_eleme
     if n_elements % 2:
         raise ValueError(f"n_elements must be even (the apex is a vertex), got {n_elements}")
     a = 0.5 * separation * radius
-    rod = Rod(hairpin(leg, a), Section(EA, EA, EA, B, B, GJ, radius=radius), n_elements)
+    section = Section(EA=EA, GA1=EA, GA2=EA, EI1=B, EI2=B, GJ=GJ, radius=radius)
+    rod = Rod(hairpin(leg, a), section, n_elements)
     rod.clamp("start").clamp("end")
     apex = rod.length / 2
     rod.pin(apex, components=(1, 2))
