@@ -11,13 +11,23 @@ Frenet frame or ``pyvista.Spline.tube``), with a coloured stripe along the
 material line ``d1``: an untwisted rod shows a straight stripe, a twisted
 one a helical stripe, so twist is visible in a still image.
 
-``pyvista`` is imported inside the functions.  When no display is available
-(or when ``off_screen=True`` is passed) ``pyvista.OFF_SCREEN`` is set to
-``True``; VTK then renders off screen (EGL/OSMesa software fallback).  VTK may
-print a harmless "bad X server connection" warning while it probes for X.
+Every picture uses the same visual code (:data:`STATE_COLORS`,
+:data:`CONTACT_COLOR`, ...): the reference shape as a translucent grey ghost,
+supports as dark grey blocks (clamps) or balls (pins), forces as black
+arrows, moments as brown double arrows, an axes triad in the lower right
+corner; titles, legends and colour bars are drawn with DejaVu Sans (Greek
+letters and maths symbols show) in bands that never cover the rod.
+
+``pyvista`` is imported inside the functions.  Rendering always uses an
+off-screen plotter (``pyvista.Plotter(off_screen=True)``): nothing global in
+pyvista is changed, so a notebook's own plotting settings stay as they are.
+VTK's warnings while it probes for a display (e.g. "bad X server
+connection" on a headless machine) are silenced for the duration of a
+render only (:func:`quiet_vtk`).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -27,13 +37,26 @@ import numpy as np
 from .export import _atomic_path, _validate_points_frames
 
 __all__ = ["tube_mesh", "render_rod", "ROD_COLOR", "STRIPE_COLOR", "STATE_NAMES",
-           "STATE_COLORS", "contact_state_colors", "render_contact_states",
-           "render_animation"]
+           "STATE_COLORS", "CONTACT_COLOR", "contact_state_colors", "render_contact_states",
+           "render_animation", "quiet_vtk"]
 
 ROD_COLOR = "#4f81bd"       # base colour of the tube (blue)
 STRIPE_COLOR = "#d62728"    # material line along d1 (red)
-CONTACT_COLOR = "#2ca02c"   # default colour of contact spheres (green)
-GLYPH_COLOR = "#333333"     # default colour of arrows (dark grey)
+#: Colour of frictionless contact points (purple: green and orange are the
+#: stick and slip of :data:`STATE_COLORS`, one code in every picture).
+CONTACT_COLOR = "#9467bd"
+GLYPH_COLOR = "#222222"     # forces (black arrows)
+MOMENT_COLOR = "#8c564b"    # moments (brown double arrows)
+SUPPORT_COLOR = "#555555"   # clamps (blocks) and pins (balls)
+REFERENCE_COLOR = "#9a9a9a"  # the reference shape (translucent ghost)
+#: Colour-bar titles of the fields of :meth:`skfem_rod.Result.to_pyvista`
+#: (``Result.render(color_by=...)``).
+FIELD_LABELS = {
+    "moment_magnitude": "|m|", "force_magnitude": "|n|",
+    "twist": "twist u\u2083 \u2212 u\u2083\u2070", "curvature": "bending |u\u2081\u2082 \u2212 u\u2081\u2082\u2070|",
+    "stretch": "stretch v\u2083 \u2212 v\u2083\u2070", "shear": "shear |v\u2081\u2082|",
+    "contact_force": "normal contact force", "arclength": "arclength s",
+}
 
 
 # --------------------------------------------------------------------------
@@ -46,12 +69,34 @@ def _has_display():
 
 
 def _pyvista(off_screen=None):
-    """Import pyvista; switch it off screen if asked or if there is no display."""
+    """Import pyvista (nothing global is changed: every plotter of this
+    module is created with ``off_screen=True``)."""
     import pyvista
 
-    if off_screen or not _has_display():
-        pyvista.OFF_SCREEN = True
     return pyvista
+
+
+@contextlib.contextmanager
+def quiet_vtk():
+    """Silence VTK's warnings and errors in the ``with`` block only.
+
+    A headless render makes VTK probe for an X display and print "bad X
+    server connection" (and similar) to stderr; the global warning switch
+    of ``vtkObject`` is turned off inside the block and restored after it.
+
+    Examples
+    --------
+    >>> with quiet_vtk():
+    ...     pass                     # build and screenshot a pyvista.Plotter here
+    """
+    from vtkmodules.vtkCommonCore import vtkObject
+
+    previous = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        yield
+    finally:
+        vtkObject.SetGlobalWarningDisplay(previous)
 
 
 def _radii(radius, n):
@@ -288,11 +333,266 @@ def _fit_camera(pl, pts, fill):
     pl.renderer.ResetCameraClippingRange()
 
 
+# --------------------------------------------------------------------------
+# annotations drawn on the image (title, legend, colour bar)
+# --------------------------------------------------------------------------
+def _font(size, bold=False):
+    """DejaVu Sans (shipped with matplotlib: Greek letters and maths
+    symbols) at ``size`` pixels."""
+    from PIL import ImageFont
+
+    try:
+        import matplotlib
+
+        name = "DejaVuSans-Bold.ttf" if bold else "DejaVuSans.ttf"
+        return ImageFont.truetype(os.path.join(matplotlib.get_data_path(), "fonts", "ttf",
+                                               name), size)
+    except (ImportError, OSError):  # pragma: no cover - matplotlib is a dependency
+        return _legend_font(size)
+
+
+def _base_font_size(width, height):
+    """Text size in pixels for an image of ``width x height``."""
+    return max(11, round(17 * min(width / 640, height / 480)))
+
+
+def _text_width(font, text):
+    left, _, right, _ = font.getbbox(text)
+    return right - left
+
+
+def _title_lines(title, width, size):
+    """Font size and lines of a title that fits ``width``: shrunk down to
+    11 px, then wrapped at spaces."""
+    title = str(title)
+    for s in range(size, 10, -1):
+        font = _font(s)
+        if _text_width(font, title) <= 0.96 * width:
+            return font, s, [title]
+    s = 11
+    font = _font(s)
+    lines, line = [], ""
+    for word in title.split():
+        trial = f"{line} {word}".strip()
+        if line and _text_width(font, trial) > 0.96 * width:
+            lines.append(line)
+            line = word
+        else:
+            line = trial
+    lines.append(line)
+    return font, s, lines
+
+
+def _layout(width, height, title, colorbar):
+    """Split the image into a title band (top), the 3D scene and a colour-bar
+    band (right).  Returns ``(scene_w, scene_h, top, title_spec)``."""
+    size = _base_font_size(width, height)
+    spec = None
+    top = 0
+    if title:
+        font, s, lines = _title_lines(title, width, round(1.15 * size))
+        top = round(len(lines) * 1.3 * s + 0.6 * s)
+        spec = (font, s, lines)
+    right = 0
+    if colorbar:
+        font = _font(size)
+        ticks = _colorbar_ticks(*colorbar[1])
+        right = round(max(0.12 * width, 2.3 * size + max(_text_width(font, t) for t in ticks)
+                          + 0.6 * size))
+    return width - right, height - top, top, spec
+
+
+def _colorbar_ticks(lo, hi):
+    """Five tick labels from ``lo`` to ``hi``, with enough digits to differ."""
+    scale = max(abs(lo), abs(hi))
+    digits = 3 if scale == 0 else max(3, 2 + int(math.ceil(math.log10(scale / (hi - lo)))))
+    return [f"{v:.{digits}g}" for v in np.linspace(lo, hi, 5)]
+
+
+def _text_color(background):
+    from pyvista import Color
+
+    return "#000000" if np.mean(Color(background).float_rgb) > 0.5 else "#ffffff"
+
+
+def _compose(scene, width, height, top, background, title_spec=None, legend=(),
+             colorbar=None):
+    """Paste the rendered ``scene`` (RGB array) under the title band of a
+    ``width x height`` canvas and draw the title, the legend (lower left
+    corner of the scene) and the colour bar (right band)."""
+    from PIL import Image, ImageDraw
+    from pyvista import Color
+
+    bg = tuple(Color(background).int_rgb)
+    fg = _text_color(background)
+    canvas = Image.new("RGB", (width, height), bg)
+    canvas.paste(Image.fromarray(np.ascontiguousarray(scene[..., :3])), (0, top))
+    draw = ImageDraw.Draw(canvas)
+    size = _base_font_size(width, height)
+    if title_spec is not None:
+        font, s, lines = title_spec
+        y = round(0.3 * s)
+        for line in lines:
+            draw.text(((width - _text_width(font, line)) / 2, y), line, fill=fg, font=font)
+            y += round(1.3 * s)
+    if legend:
+        ls = max(10, round(0.8 * size))
+        _draw_legend(draw, legend, x0=round(0.6 * ls), y1=height - round(0.6 * ls),
+                     size=ls, fg=fg, bg=bg)
+    if colorbar is not None:
+        _draw_colorbar(draw, colorbar, x0=scene.shape[1], top=top, width=width - scene.shape[1],
+                       height=height - top, size=size, fg=fg)
+    return np.asarray(canvas)
+
+
+def _draw_legend(draw, entries, x0, y1, size, fg, bg):
+    """Entries ``(kind, colour, label)`` stacked upwards from ``y1``; kind
+    ``"dot"`` (a marker), ``"line"`` (a thick line), ``"arrow"``,
+    ``"box"`` or ``"ghost"``."""
+    font = _font(size)
+    step = round(1.45 * size)
+    w = max(_text_width(font, label) for _, _, label in entries) + round(2.4 * size)
+    y0 = y1 - step * len(entries)
+    draw.rectangle([x0 - size // 3, y0 - size // 3, x0 + w, y1], fill=bg,
+                   outline="#cccccc")
+    y = y0
+    for kind, color, label in entries:
+        cy = y + step / 2 - size / 6
+        if kind == "dot":
+            draw.ellipse([x0, cy - size / 2, x0 + size, cy + size / 2], fill=color,
+                         outline="#333333")
+        elif kind == "line":
+            draw.line([x0 - 2, cy, x0 + size + 2, cy], fill=color, width=max(3, size // 4))
+        elif kind == "ghost":
+            draw.rounded_rectangle([x0 - 2, cy - size / 4, x0 + size + 2, cy + size / 4],
+                                   radius=size // 4, fill="#dedede", outline=color)
+        elif kind == "box":
+            draw.rectangle([x0 + 1, cy - size / 2 + 1, x0 + size - 1, cy + size / 2 - 1],
+                           fill=color)
+        elif kind in ("arrow", "double"):
+            lw = max(2, size // 6)
+            draw.line([x0, cy, x0 + size, cy], fill=color, width=lw)
+            h = size / 3
+            draw.polygon([(x0 + size + 2, cy), (x0 + size - h, cy - h), (x0 + size - h, cy + h)],
+                         fill=color)
+            if kind == "double":
+                draw.polygon([(x0 + size - h, cy), (x0 + size - 2 * h - 2, cy - h),
+                              (x0 + size - 2 * h - 2, cy + h)], fill=color)
+        draw.text((x0 + round(1.6 * size), y + (step - size) / 2 - size / 5), label, fill=fg,
+                  font=font)
+        y += step
+
+
+def _draw_colorbar(draw, bar, x0, top, width, height, size, fg):
+    """Vertical colour bar ``bar = (cmap, (lo, hi), label)`` in the band
+    ``[x0, x0 + width] x [top, top + height]``."""
+    import matplotlib
+
+    cmap, (lo, hi), label = bar
+    cmap = matplotlib.colormaps[cmap] if isinstance(cmap, str) else cmap
+    font = _font(size)
+    # the label above the bar, shrunk to fit the band
+    s = size
+    while s > 9 and _text_width(_font(s), label) > 0.96 * width:
+        s -= 1
+    lfont = _font(s)
+    y_label = top + round(0.12 * height)
+    draw.text((x0 + (width - _text_width(lfont, label)) / 2 - 0.02 * width, y_label), label,
+              fill=fg, font=lfont)
+    bx0 = x0 + round(0.6 * size)
+    bw = max(8, round(0.9 * size))
+    by0 = y_label + round(1.8 * size)
+    by1 = top + round(0.88 * height)
+    n = max(2, by1 - by0)
+    for k in range(n):
+        rgba = cmap(1 - k / (n - 1))
+        draw.line([bx0, by0 + k, bx0 + bw, by0 + k],
+                  fill=tuple(int(round(255 * c)) for c in rgba[:3]))
+    draw.rectangle([bx0, by0, bx0 + bw, by0 + n], outline="#555555")
+    for t, text in zip(np.linspace(0, 1, 5), _colorbar_ticks(lo, hi)):
+        y = by0 + (1 - t) * n
+        draw.line([bx0 + bw, y, bx0 + bw + size // 3, y], fill="#555555", width=1)
+        draw.text((bx0 + bw + size // 2, y - 0.6 * size), text, fill=fg, font=font)
+
+
+# --------------------------------------------------------------------------
+# scene pieces: reference ghost, supports, loads
+# --------------------------------------------------------------------------
+def _tube_actor_kwargs():
+    return dict(smooth_shading=True, specular=0.3, specular_power=20, ambient=0.2)
+
+
+def _support_meshes(pv, supports, size):
+    """Blocks (clamps, prescribed motions) and balls (pins) of edge/diameter
+    ``size`` at the support points."""
+    blocks, balls = [], []
+    for sup in supports or ():
+        p = _as_points("supports point", sup["point"])[0]
+        kind = sup.get("kind", "clamp")
+        if kind == "pin":
+            balls.append(pv.Sphere(radius=size / 2, center=p, theta_resolution=20,
+                                   phi_resolution=20))
+        elif kind in ("clamp", "turn", "slide"):
+            blocks.append(pv.Cube(center=p, x_length=size, y_length=size, z_length=size))
+        else:
+            raise ValueError(f"support kind {kind!r}; expected 'clamp', 'pin', 'turn' "
+                             f"or 'slide'")
+    merge = (lambda ms: None if not ms else (ms[0] if len(ms) == 1 else ms[0].merge(ms[1:])))
+    return merge(blocks), merge(balls)
+
+
+def _load_meshes(pv, loads, length, start_offset):
+    """Arrows of length ``length`` for ``loads`` (dicts ``point``,
+    ``vector``, ``kind``): forces single, moments double headed.  The arrow
+    starts ``start_offset`` away from the point (outside the tube)."""
+    forces, moments = [], []
+    for ld in loads or ():
+        p = _as_points("loads point", ld["point"])[0]
+        v = np.asarray(ld["vector"], float)
+        nv = np.linalg.norm(v)
+        if not np.isfinite(nv) or nv == 0:
+            continue
+        d = v / nv
+        start = p + start_offset * d
+        if ld.get("kind", "force") == "moment":
+            arrow = pv.Arrow(start=start, direction=d, scale=length, tip_length=0.22,
+                             tip_radius=0.07, shaft_radius=0.025)
+            second = pv.Cone(center=start + d * length * 0.67, direction=d,
+                             height=0.22 * length, radius=0.07 * length, resolution=24)
+            moments += [arrow, second]
+        else:
+            forces.append(pv.Arrow(start=start, direction=d, scale=length, tip_length=0.25,
+                                   tip_radius=0.08, shaft_radius=0.03))
+    merge = (lambda ms: None if not ms else (ms[0] if len(ms) == 1 else ms[0].merge(ms[1:])))
+    return merge(forces), merge(moments)
+
+
+def _centreline_values(name, values, n):
+    a = np.asarray(values, dtype=float)
+    if a.shape != (n,):
+        raise ValueError(f"{name} has shape {a.shape}; expected ({n},): one value per "
+                         f"centreline point")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} contains NaN/inf; only finite values are allowed")
+    return a
+
+
+def _tube_point_values(values, n, m, capped=True):
+    """Per-centreline-point values spread over a tube of ``tube_mesh``
+    (rings, then the two caps)."""
+    out = np.repeat(values, m)
+    if capped:
+        out = np.concatenate([out, np.full(m + 1, values[0]), np.full(m + 1, values[-1])])
+    return out
+
+
 def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
-               contact_points=None, contact_colors=None, glyphs=None, title=None,
-               background="white", camera="iso", color=ROD_COLOR,
+               contact_points=None, contact_colors=None, contact_states=None, glyphs=None,
+               title=None, background="white", camera="iso", color=ROD_COLOR,
                stripe_color=STRIPE_COLOR, stripe_width=0.35, n_around=48,
-               contact_radius=None, zoom=None, off_screen=None):
+               contact_radius=None, zoom=None, off_screen=None, reference=None,
+               supports=None, loads=None, scalars=None, cmap="viridis", clim=None,
+               scalar_label=None, axes=True, legend=True):
     """Render the rod as a striped tube and write a PNG, atomically.
 
     Parameters
@@ -310,19 +610,25 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
         One colour for all (name, hex string or RGB *tuple*), a list of
         ``m`` colours, an ``(m, 3)`` RGB array (floats in [0, 1] or ints
         0..255), or an ``(m,)`` array of scalars (coloured with viridis).
+        Default :data:`CONTACT_COLOR` (frictionless contact).
+    contact_states : array_like of int (m,), optional
+        Instead of ``contact_colors``: the friction state of each point
+        (0 open, 1 stick, 2 slip), coloured by :data:`STATE_COLORS` and
+        named in the legend.
     glyphs : dict, optional
         Arrows: ``points`` (k, 3), ``vectors`` (k, 3), optional ``color``
         and ``scale`` (arrow length = ``scale * |vector|``; default: the
         longest arrow is 15 % of the rod's bounding-box diagonal).
     title : str, optional
-        Text at the top of the image.
+        Text above the scene (DejaVu Sans: Greek letters show), shrunk or
+        wrapped to fit the width.
     background : colour
     camera : str or camera position
         A pyvista view (``"iso"``, ``"xy"``, ``"xz"``, ``"yz"``, ``"yx"``,
         ``"zx"``, ``"zy"``): the camera is reset onto the whole scene and then
-        zoomed so that the scene fills about 90 % of the window (80 % with a
-        title).  Anything else (e.g. ``[position, focal_point, view_up]``) is
-        passed to ``Plotter.camera_position`` and used as is.
+        zoomed so that the scene fills about 90 % of its part of the image.
+        Anything else (e.g. ``[position, focal_point, view_up]``) is passed
+        to ``Plotter.camera_position`` and used as is.
     color, stripe_color : colour
         Tube colour and colour of the material line along ``d1``.
     stripe_width, n_around
@@ -335,97 +641,205 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
         Instead of the automatic fit, ``reset_camera`` followed by
         ``camera.zoom(zoom)``.
     off_screen : bool, optional
-        Force ``pyvista.OFF_SCREEN = True``; it is set anyway when no display
-        is available.  Rendering always uses an off-screen window.
+        Accepted for compatibility; rendering always uses an off-screen
+        plotter and changes no global pyvista setting.
+    reference : (points, frames), optional
+        The reference shape, drawn as a translucent grey ghost.
+    supports : list of dict, optional
+        ``{"point": (3,), "kind": "clamp" | "pin" | "turn" | "slide"}``:
+        dark grey blocks (clamps, prescribed motions) or balls (pins).
+    loads : list of dict, optional
+        ``{"point": (3,), "vector": (3,), "kind": "force" | "moment"}``:
+        arrows of one length showing the direction (forces black, moments
+        brown double arrows).
+    scalars : array_like (n,), optional
+        A field per centreline point: the tube is coloured by it through
+        ``cmap`` (limits ``clim``, default its range) with a colour bar
+        titled ``scalar_label``; the material line is then a thin red line.
+    axes : bool, default True
+        An x-y-z triad in the lower right corner.
+    legend : bool, default True
+        Name what is drawn (reference, supports, loads, contact markers) in
+        the lower left corner.
 
     Returns
     -------
     str
         ``filename``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = np.linspace(0, 1, 20)
+    >>> pts = np.c_[s, 0 * s, 0 * s]
+    >>> R = np.repeat([[[0, 0, 1], [0, 1, 0], [-1, 0, 0]]], 20, axis=0)  # d3 = +x
+    >>> render_rod("rod.png", pts, R, 0.02, window_size=(320, 240), title="κ = 0",
+    ...            supports=[{"point": pts[0], "kind": "clamp"}])  # doctest: +SKIP
+    'rod.png'
     """
-    pv = _pyvista(off_screen)
-    points, frames = _validate_points_frames(points, frames)
-    r = _radii(radius, points.shape[0])
-    width, height = _window_size(window_size)
-
-    tube = tube_mesh(points, frames, r, n_around=n_around, stripe_width=stripe_width)
-    # |phi| interpolated linearly across the quads and mapped through a
-    # two-colour table gives a stripe edge exactly at |phi| = stripe_width/2.
-    tube.point_data["stripe_coord"] = np.where(
-        tube.point_data["cap"] == 1, np.pi, np.abs(tube.point_data["phi"])
-    )
-    fit_pts = [tube.points]
-
-    pl = pv.Plotter(off_screen=True, window_size=(width, height), lighting="three lights")
-    try:
-        pl.set_background(background)
-        try:  # smoother silhouettes; SSAA works with the OSMesa/EGL fallback
-            pl.enable_anti_aliasing("ssaa")
-        except Exception:  # pragma: no cover - depends on the VTK build
-            pass
-        pl.add_mesh(
-            tube, scalars="stripe_coord", clim=(0.0, np.pi),
-            cmap=_color_lut(pv, color, stripe_color, stripe_width),
-            interpolate_before_map=True, show_scalar_bar=False,
-            smooth_shading=True, specular=0.3, specular_power=20, ambient=0.2,
-        )
-
-        if contact_points is not None:
-            cp = _as_points("contact_points", contact_points)
-            if len(cp):
-                rad = float(contact_radius) if contact_radius is not None else 1.25 * r.max()
-                if not (np.isfinite(rad) and rad > 0):
-                    raise ValueError(f"contact_radius = {contact_radius!r}; expected > 0")
-                cloud = pv.PolyData(cp)
-                kw = _contact_color_kwargs(pv, cloud, contact_colors, len(cp))
-                spheres = cloud.glyph(
-                    geom=pv.Sphere(radius=rad, theta_resolution=20, phi_resolution=20),
-                    scale=False, orient=False,
-                )
-                pl.add_mesh(spheres, smooth_shading=True, show_scalar_bar=False,
-                            ambient=0.2, **kw)
-                fit_pts.append(spheres.points)
-
-        if glyphs is not None:
-            arrows = _arrow_mesh(pv, glyphs, points)
-            if arrows is not None:
-                pl.add_mesh(arrows, color=glyphs.get("color", GLYPH_COLOR),
-                            smooth_shading=True)
-                fit_pts.append(arrows.points)
-
-        if title:
-            text_color = "black" if np.mean(pv.Color(background).float_rgb) > 0.5 else "white"
-            font_size = max(8, round(14 * height / 768))
-            pl.add_text(str(title), position="upper_edge", font_size=font_size,
-                        color=text_color)
-
-        if isinstance(camera, str):
-            pl.camera_position = camera
-            pl.reset_camera()
-            if zoom is None:
-                pts = np.vstack(fit_pts)
-                if len(pts) > 50000:
-                    pts = pts[:: len(pts) // 50000 + 1]
-                _fit_camera(pl, pts, 0.8 if title else 0.9)
-            else:
-                pl.camera.zoom(float(zoom))
-        else:
-            pl.camera_position = camera
-
-        img = np.asarray(pl.screenshot(None, return_img=True))
-    finally:
-        pl.close()
-
-    if img.shape[:2] != (height, width):
-        raise RuntimeError(
-            f"renderer produced an image of {img.shape[1]}x{img.shape[0]} pixels, "
-            f"not the requested {width}x{height}"
-        )
+    img = _rod_image(points, frames, radius, window_size=window_size,
+                     contact_points=contact_points, contact_colors=contact_colors,
+                     contact_states=contact_states, glyphs=glyphs, title=title,
+                     background=background, camera=camera, color=color,
+                     stripe_color=stripe_color, stripe_width=stripe_width, n_around=n_around,
+                     contact_radius=contact_radius, zoom=zoom, reference=reference,
+                     supports=supports, loads=loads, scalars=scalars, cmap=cmap, clim=clim,
+                     scalar_label=scalar_label, axes=axes, legend=legend)
     from PIL import Image  # a dependency of pyvista and matplotlib
 
     with _atomic_path(filename) as tmp:
         Image.fromarray(np.ascontiguousarray(img)).save(tmp, format="PNG")
     return os.fspath(filename)
+
+
+def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_points=None,
+               contact_colors=None, contact_states=None, glyphs=None, title=None,
+               background="white", camera="iso", color=ROD_COLOR, stripe_color=STRIPE_COLOR,
+               stripe_width=0.35, n_around=48, contact_radius=None, zoom=None,
+               reference=None, supports=None, loads=None, scalars=None, cmap="viridis",
+               clim=None, scalar_label=None, axes=True, legend=True):
+    """The picture of :func:`render_rod` as an ``(h, w, 3)`` uint8 array."""
+    pv = _pyvista()
+    points, frames = _validate_points_frames(points, frames)
+    n = points.shape[0]
+    r = _radii(radius, n)
+    width, height = _window_size(window_size)
+    if contact_states is not None and contact_colors is not None:
+        raise ValueError("give contact_colors or contact_states, not both")
+    values = None if scalars is None else _centreline_values("scalars", scalars, n)
+    if values is not None:
+        lo, hi = (float(values.min()), float(values.max())) if clim is None else map(float, clim)
+        if hi <= lo:
+            hi = lo + max(abs(lo), 1.0) * 1e-6
+        bar = (cmap, (lo, hi), str(scalar_label or "scalars"))
+    else:
+        bar = None
+    sw, sh, top, title_spec = _layout(width, height, title, bar)
+
+    tube = tube_mesh(points, frames, r, n_around=n_around, stripe_width=stripe_width)
+    tube.point_data["stripe_coord"] = np.where(
+        tube.point_data["cap"] == 1, np.pi, np.abs(tube.point_data["phi"]))
+    fit_pts = [tube.points]
+    entries = []
+    size = 5 * r.max()
+
+    with quiet_vtk():
+        pl = pv.Plotter(off_screen=True, window_size=(sw, sh), lighting="three lights")
+        try:
+            pl.set_background(background)
+            try:  # smoother silhouettes; SSAA works with the OSMesa/EGL fallback
+                pl.enable_anti_aliasing("ssaa")
+            except Exception:  # pragma: no cover - depends on the VTK build
+                pass
+            if values is None:
+                # |phi| interpolated linearly across the quads and mapped through a
+                # two-colour table gives a stripe edge exactly at |phi| = stripe_width/2.
+                pl.add_mesh(tube, scalars="stripe_coord", clim=(0.0, np.pi),
+                            cmap=_color_lut(pv, color, stripe_color, stripe_width),
+                            interpolate_before_map=True, show_scalar_bar=False,
+                            **_tube_actor_kwargs())
+            else:
+                tube.point_data["field"] = _tube_point_values(values, n, int(n_around))
+                pl.add_mesh(tube, scalars="field", clim=bar[1], cmap=cmap,
+                            show_scalar_bar=False, **_tube_actor_kwargs())
+                line = pv.lines_from_points(points + 1.02 * r[:, None] * frames[:, :, 0])
+                pl.add_mesh(line.tube(radius=0.15 * r.max()), color=stripe_color,
+                            smooth_shading=True)
+            entries.append(("line", stripe_color, "material line d\u2081"))
+
+            if reference is not None:
+                ref_pts, ref_frames = _validate_points_frames(*reference)
+                ghost = tube_mesh(ref_pts, ref_frames, _radii(r.max(), len(ref_pts)),
+                                  n_around=24)
+                pl.add_mesh(ghost, color=REFERENCE_COLOR, opacity=0.3, smooth_shading=True,
+                            show_scalar_bar=False)
+                fit_pts.append(ghost.points)
+                entries.insert(0, ("ghost", REFERENCE_COLOR, "reference shape"))
+
+            blocks, balls = _support_meshes(pv, supports, size)
+            if blocks is not None:
+                pl.add_mesh(blocks, color=SUPPORT_COLOR, ambient=0.3)
+                fit_pts.append(blocks.points)
+                entries.append(("box", SUPPORT_COLOR, "clamp"))
+            if balls is not None:
+                pl.add_mesh(balls, color=SUPPORT_COLOR, smooth_shading=True, ambient=0.3)
+                fit_pts.append(balls.points)
+                entries.append(("dot", SUPPORT_COLOR, "pin"))
+
+            if loads:
+                diag = np.linalg.norm(np.ptp(np.vstack(fit_pts), axis=0))
+                forces, moments = _load_meshes(pv, loads, 0.2 * diag, 1.5 * size / 2)
+                if forces is not None:
+                    pl.add_mesh(forces, color=GLYPH_COLOR, smooth_shading=True)
+                    fit_pts.append(forces.points)
+                    entries.append(("arrow", GLYPH_COLOR, "force"))
+                if moments is not None:
+                    pl.add_mesh(moments, color=MOMENT_COLOR, smooth_shading=True)
+                    fit_pts.append(moments.points)
+                    entries.append(("double", MOMENT_COLOR, "moment"))
+
+            if contact_points is not None:
+                cp = _as_points("contact_points", contact_points)
+                if len(cp):
+                    rad = float(contact_radius) if contact_radius is not None else 1.25 * r.max()
+                    if not (np.isfinite(rad) and rad > 0):
+                        raise ValueError(f"contact_radius = {contact_radius!r}; expected > 0")
+                    cloud = pv.PolyData(cp)
+                    if contact_states is not None:
+                        rgb = contact_state_colors(contact_states)
+                        if len(rgb) != len(cp):
+                            raise ValueError(
+                                f"states has {len(rgb)} entries but contact_points has "
+                                f"{len(cp)} points; give one state per point")
+                        cloud.point_data["rgb"] = rgb
+                        kw = {"scalars": "rgb", "rgb": True}
+                        for k in sorted(set(np.asarray(contact_states, int).tolist())):
+                            entries.append(("dot", STATE_COLORS[k], STATE_NAMES[k]))
+                    else:
+                        kw = _contact_color_kwargs(pv, cloud, contact_colors, len(cp))
+                        if contact_colors is None:
+                            entries.append(("dot", CONTACT_COLOR, "contact"))
+                    spheres = cloud.glyph(
+                        geom=pv.Sphere(radius=rad, theta_resolution=20, phi_resolution=20),
+                        scale=False, orient=False)
+                    pl.add_mesh(spheres, smooth_shading=True, show_scalar_bar=False,
+                                ambient=0.2, **kw)
+                    fit_pts.append(spheres.points)
+
+            if glyphs is not None:
+                arrows = _arrow_mesh(pv, glyphs, points)
+                if arrows is not None:
+                    pl.add_mesh(arrows, color=glyphs.get("color", GLYPH_COLOR),
+                                smooth_shading=True)
+                    fit_pts.append(arrows.points)
+
+            if axes:
+                pl.add_axes(viewport=(0.84, 0.0, 1.0, 0.2), line_width=3,
+                            labels_off=False)
+
+            if isinstance(camera, str):
+                pl.camera_position = camera
+                pl.reset_camera()
+                if zoom is None:
+                    pts = np.vstack(fit_pts)
+                    if len(pts) > 50000:
+                        pts = pts[:: len(pts) // 50000 + 1]
+                    _fit_camera(pl, pts, 0.9)
+                else:
+                    pl.camera.zoom(float(zoom))
+            else:
+                pl.camera_position = camera
+
+            scene = np.asarray(pl.screenshot(None, return_img=True))[..., :3]
+        finally:
+            pl.close()
+
+    if scene.shape[:2] != (sh, sw):
+        raise RuntimeError(
+            f"renderer produced an image of {scene.shape[1]}x{scene.shape[0]} pixels, "
+            f"not the requested {sw}x{sh}")
+    return _compose(scene, width, height, top, background, title_spec,
+                    entries if legend else (), bar)
 
 
 def _contact_color_kwargs(pv, cloud, colors, m):
@@ -536,6 +950,8 @@ def contact_state_colors(states):
     return table[a]
 
 
+
+
 def _legend_font(size):
     from PIL import ImageFont
 
@@ -545,24 +961,9 @@ def _legend_font(size):
         return ImageFont.load_default()
 
 
-def _draw_state_legend(img, states=None):
-    """Draw the open/stick/slip legend in the lower left corner of an RGB image
-    (``(h, w, 3)`` uint8); only the states present in ``states`` are listed
-    (all three when ``states`` is None).  Returns a new array."""
-    from PIL import Image, ImageDraw
-
-    present = range(len(STATE_NAMES)) if states is None else sorted(set(np.asarray(states, int).tolist()))
-    h = img.shape[0]
-    size = max(10, round(16 * h / 768))
-    font = _legend_font(size)
-    im = Image.fromarray(np.ascontiguousarray(img[..., :3]))
-    draw = ImageDraw.Draw(im)
-    x0, y = size, h - size - (size + size // 2) * len(present)
-    for k in present:
-        draw.ellipse([x0, y, x0 + size, y + size], fill=STATE_COLORS[k], outline="#333333")
-        draw.text((x0 + 1.5 * size, y - size // 8), STATE_NAMES[k], fill="#222222", font=font)
-        y += size + size // 2
-    return np.asarray(im)
+def _state_entries(states):
+    present = sorted(set(np.asarray(states, int).tolist()))
+    return [("dot", STATE_COLORS[k], STATE_NAMES[k]) for k in present]
 
 
 def render_contact_states(filename, points, frames, radius, contact_points, states, *,
@@ -583,10 +984,10 @@ def render_contact_states(filename, points, frames, radius, contact_points, stat
     states : array_like of int, (m,)
         ``0`` open, ``1`` stick, ``2`` slip.
     legend : bool, default True
-        Name the states shown.
+        Name what is shown.
     **kwargs
         Passed on to :func:`render_rod` (``window_size``, ``title``,
-        ``camera``, ``glyphs`` ...; not ``contact_colors``).
+        ``camera``, ``glyphs``, ``reference`` ...; not ``contact_colors``).
 
     Returns
     -------
@@ -613,22 +1014,42 @@ def render_contact_states(filename, points, frames, radius, contact_points, stat
             f"states has {len(colors)} entries but contact_points has {len(cp)} points; "
             f"give one state per point"
         )
-    render_rod(filename, points, frames, radius, contact_points=cp,
-               contact_colors=colors, **kwargs)
-    if legend and len(cp):
-        from PIL import Image
+    kwargs.setdefault("axes", legend)
+    return render_rod(filename, points, frames, radius, contact_points=cp,
+                      contact_states=np.asarray(states, int), legend=legend, **kwargs)
 
-        img = _draw_state_legend(np.asarray(Image.open(filename).convert("RGB")), states)
-        with _atomic_path(filename) as tmp:
-            Image.fromarray(img).save(tmp, format="PNG")
-    return os.fspath(filename)
+
+def _gif_palette(images, fixed):
+    """A 256-colour palette: an adaptive one for the frames plus every colour
+    of ``fixed`` in several shades (so that shaded markers keep their hue
+    when the frames are quantized)."""
+    from PIL import Image
+
+    shades = []
+    for c in fixed:
+        rgb = np.array([int(c[i:i + 2], 16) for i in (1, 3, 5)], float)
+        for f in (0.45, 0.6, 0.75, 0.9, 1.0):
+            shades.append(np.rint(rgb * f))
+        for t in (0.25, 0.5):
+            shades.append(np.rint(rgb + (255 - rgb) * t))
+    shades = np.unique(np.clip(shades, 0, 255).astype(np.uint8), axis=0)
+    n_adaptive = 256 - len(shades)
+    sample = np.vstack(images[:: max(1, len(images) // 8)])
+    adaptive = Image.fromarray(sample).quantize(colors=n_adaptive,
+                                                method=Image.Quantize.MEDIANCUT)
+    pal = np.array(adaptive.getpalette()[: 3 * n_adaptive], np.uint8).reshape(-1, 3)
+    pal = np.vstack([pal, np.zeros((n_adaptive - len(pal), 3), np.uint8), shades])
+    palette = Image.new("P", (1, 1))
+    palette.putpalette(pal.ravel().tolist())
+    return palette
 
 
 def render_animation(filename, configurations, radius, *, window_size=(640, 480),
                      fps=4, titles=None, camera="iso", contact_points=None,
                      contact_states=None, color=ROD_COLOR, stripe_color=STRIPE_COLOR,
                      stripe_width=0.35, n_around=32, background="white",
-                     hold_last=2, off_screen=None):
+                     hold_last=2, off_screen=None, reference=None, supports=None,
+                     axes=True, legend=True):
     """Write an animated GIF of a sequence of rod configurations (a load path).
 
     Every frame is drawn like :func:`render_rod` (tube with the ``d1``
@@ -636,7 +1057,9 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     camera for all frames**, fitted to the union of all configurations, so
     the rod moves inside a fixed view.  The frames are assembled into a
     looping GIF with Pillow (already a dependency of pyvista and matplotlib;
-    no video codec needed) and written atomically.
+    no video codec needed) and written atomically.  The GIF palette holds
+    the marker and stripe colours in several shades, so stick green and
+    slip orange stay green and orange.
 
     Parameters
     ----------
@@ -652,7 +1075,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     fps : float, default 4
         Frames per second.
     titles : sequence of str, optional
-        One caption per frame (e.g. the load factor).
+        One caption per frame (e.g. the load factor), above the scene.
     camera : str or array_like (3,), default "iso"
         A pyvista view (``"iso"``, ``"xy"``, ...) or a view direction (from
         the scene towards the camera, e.g. ``(0, -0.6, 1)``: from above,
@@ -661,14 +1084,20 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
         Contact markers per frame.
     contact_states : sequence of array_like (m_k,), optional
         Integer states per frame (0 open, 1 stick, 2 slip); without them the
-        markers take the default contact colour.
+        markers take the frictionless contact colour :data:`CONTACT_COLOR`.
     color, stripe_color, stripe_width, n_around, background
         As in :func:`render_rod`.
     hold_last : int, default 2
         Repeat the last frame this many extra times (a pause before the
         loop restarts).
     off_screen : bool, optional
-        As in :func:`render_rod`.
+        Accepted for compatibility (always off screen).
+    reference : (points, frames), optional
+        Drawn in every frame as a translucent grey ghost.
+    supports : list of dict, optional
+        As in :func:`render_rod` (fixed points: drawn in every frame).
+    axes, legend : bool, default True
+        Axes triad; legend of what is drawn.
 
     Returns
     -------
@@ -686,7 +1115,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
                          titles=[f"load factor {st.load_factor:.2f}"
                                  for st in result.steps])
     """
-    pv = _pyvista(off_screen)
+    pv = _pyvista()
     confs = list(configurations)
     if not confs:
         raise ValueError("configurations is empty; give at least one (points, frames) pair")
@@ -700,8 +1129,14 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
                              f"configurations; give one per configuration")
     if contact_states is not None and contact_points is None:
         raise ValueError("contact_states needs contact_points (one array per frame)")
+    if not isinstance(camera, str):
+        view = np.asarray(camera, dtype=float)
+        if view.shape != (3,) or not np.all(np.isfinite(view)) or not view.any():
+            raise ValueError(f"camera = {camera!r}; expected a pyvista view name "
+                             f"('iso', 'xy', ...) or a non-zero 3-vector")
 
     tubes, markers = [], []
+    rmax = float(np.max(radius))
     for k, (pts, frs) in enumerate(confs):
         pts, frs = _validate_points_frames(pts, frs)
         r = _radii(radius, pts.shape[0])
@@ -726,55 +1161,77 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
                                                    phi_resolution=16), scale=False, orient=False)
         markers.append(cloud)
 
-    all_pts = np.vstack([t.points for t in tubes] + [m.points for m in markers if m is not None])
+    statics = []
+    if reference is not None:
+        ref_pts, ref_frames = _validate_points_frames(*reference)
+        statics.append(("ghost", tube_mesh(ref_pts, ref_frames,
+                                           _radii(rmax, len(ref_pts)), n_around=24)))
+    blocks, balls = _support_meshes(pv, supports, 5 * rmax)
+    statics += [(kind, m) for kind, m in (("block", blocks), ("ball", balls)) if m is not None]
+
+    all_pts = np.vstack([t.points for t in tubes] + [m.points for m in markers if m is not None]
+                        + [m.points for _, m in statics])
     if len(all_pts) > 50000:
         all_pts = all_pts[:: len(all_pts) // 50000 + 1]
     lo, hi = all_pts.min(axis=0), all_pts.max(axis=0)
     bounds = (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
     cmap = _color_lut(pv, color, stripe_color, stripe_width)
-    text_color = "black" if np.mean(pv.Color(background).float_rgb) > 0.5 else "white"
+    sw, sh, top, _ = _layout(width, height, max(titles, key=len) if titles else None, False)
+
+    base_entries = [("line", stripe_color, "material line d\u2081")]
+    for kind, _ in statics:
+        base_entries.insert(0, {"ghost": ("ghost", REFERENCE_COLOR, "reference shape"),
+                                "block": ("box", SUPPORT_COLOR, "clamp"),
+                                "ball": ("dot", SUPPORT_COLOR, "pin")}[kind])
+    fixed = [color, stripe_color, CONTACT_COLOR, *STATE_COLORS]
 
     images = []
-    pl = pv.Plotter(off_screen=True, window_size=(width, height), lighting="three lights")
-    try:
-        pl.set_background(background)
+    with quiet_vtk():
+        pl = pv.Plotter(off_screen=True, window_size=(sw, sh), lighting="three lights")
         try:
-            pl.enable_anti_aliasing("ssaa")
-        except Exception:  # pragma: no cover - depends on the VTK build
-            pass
-        if isinstance(camera, str):
-            pl.camera_position = camera
-        else:
-            view = np.asarray(camera, dtype=float)
-            if view.shape != (3,) or not np.all(np.isfinite(view)) or not view.any():
-                raise ValueError(f"camera = {camera!r}; expected a pyvista view name "
-                                 f"('iso', 'xy', ...) or a non-zero 3-vector")
-            pl.view_vector(view)
-        pl.reset_camera(bounds=bounds)
-        _fit_camera(pl, all_pts, 0.8 if titles else 0.9)
-        cam = pl.camera.copy()
-        for k, tube in enumerate(tubes):
-            pl.add_mesh(tube, scalars="stripe_coord", clim=(0.0, np.pi), cmap=cmap,
-                        interpolate_before_map=True, show_scalar_bar=False,
-                        smooth_shading=True, specular=0.3, specular_power=20,
-                        ambient=0.2, name="rod", reset_camera=False)
-            if markers[k] is not None:
-                kw = ({"scalars": "rgb", "rgb": True} if "rgb" in markers[k].point_data
-                      else {"color": CONTACT_COLOR})
-                pl.add_mesh(markers[k], smooth_shading=True, show_scalar_bar=False,
-                            ambient=0.2, name="contacts", reset_camera=False, **kw)
+            pl.set_background(background)
+            try:
+                pl.enable_anti_aliasing("ssaa")
+            except Exception:  # pragma: no cover - depends on the VTK build
+                pass
+            if isinstance(camera, str):
+                pl.camera_position = camera
             else:
-                pl.remove_actor("contacts")
-            if titles:
-                pl.add_text(str(titles[k]), position="upper_edge", name="title",
-                            font_size=max(8, round(14 * height / 768)), color=text_color)
-            pl.camera = cam.copy()
-            img = np.asarray(pl.screenshot(None, return_img=True))[..., :3]
-            if contact_states is not None and markers[k] is not None:
-                img = _draw_state_legend(img, contact_states[k])
-            images.append(np.ascontiguousarray(img))
-    finally:
-        pl.close()
+                pl.view_vector(view)
+            for kind, m in statics:
+                if kind == "ghost":
+                    pl.add_mesh(m, color=REFERENCE_COLOR, opacity=0.3, smooth_shading=True,
+                                reset_camera=False)
+                else:
+                    pl.add_mesh(m, color=SUPPORT_COLOR, ambient=0.3, reset_camera=False)
+            if axes:
+                pl.add_axes(viewport=(0.84, 0.0, 1.0, 0.2), line_width=3)
+            pl.reset_camera(bounds=bounds)
+            _fit_camera(pl, all_pts, 0.9)
+            cam = pl.camera.copy()
+            for k, tube in enumerate(tubes):
+                pl.add_mesh(tube, scalars="stripe_coord", clim=(0.0, np.pi), cmap=cmap,
+                            interpolate_before_map=True, show_scalar_bar=False,
+                            name="rod", reset_camera=False, **_tube_actor_kwargs())
+                entries = list(base_entries)
+                if markers[k] is not None:
+                    if "rgb" in markers[k].point_data:
+                        kw = {"scalars": "rgb", "rgb": True}
+                        entries += _state_entries(contact_states[k])
+                    else:
+                        kw = {"color": CONTACT_COLOR}
+                        entries.append(("dot", CONTACT_COLOR, "contact"))
+                    pl.add_mesh(markers[k], smooth_shading=True, show_scalar_bar=False,
+                                ambient=0.2, name="contacts", reset_camera=False, **kw)
+                else:
+                    pl.remove_actor("contacts")
+                pl.camera = cam.copy()
+                scene = np.asarray(pl.screenshot(None, return_img=True))[..., :3]
+                spec = _layout(width, height, titles[k], False)[3] if titles else None
+                images.append(_compose(scene, width, height, top, background, spec,
+                                       entries if legend else ()))
+        finally:
+            pl.close()
 
     if images[0].shape[:2] != (height, width):
         raise RuntimeError(
@@ -782,11 +1239,9 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
             f"pixels, not the requested {width}x{height}")
     from PIL import Image
 
-    pics = [Image.fromarray(im) for im in images]
+    pics = [Image.fromarray(np.ascontiguousarray(im)) for im in images]
     pics += [pics[-1]] * int(max(hold_last, 0))
-    # one adaptive palette from all frames keeps the colours steady
-    palette = Image.fromarray(np.vstack(images[:: max(1, len(images) // 8)])).quantize(
-        colors=255, method=Image.Quantize.MEDIANCUT)
+    palette = _gif_palette(images, fixed)
     frames_p = [p.quantize(palette=palette, dither=Image.Dither.NONE) for p in pics]
     with _atomic_path(filename) as tmp:
         frames_p[0].save(tmp, format="GIF", save_all=True, append_images=frames_p[1:],

@@ -545,9 +545,14 @@ class Result:
 
     def render(self, filename, step=-1, radius=None, per_element=8, **kwargs):
         """Offscreen PNG of the rod at a step as a tube with a stripe along
-        ``d1``; active contact points are marked (unless ``contact_points`` is
-        given; with friction on they are coloured by state: stick green,
-        slip orange, see :func:`skfem_rod.render.contact_state_colors`).
+        ``d1``, with the reference shape (step 0) as a grey ghost, the
+        supports and the point loads of the step, and an axes triad; active
+        contact points are marked (unless ``contact_points`` is given):
+        frictionless purple, or coloured by state with friction on (stick
+        green, slip orange, see :func:`skfem_rod.render.contact_state_colors`).
+        ``color_by="moment_magnitude"`` (or any scalar field of
+        :meth:`to_pyvista`: ``twist``, ``curvature``, ``contact_force`` ...)
+        colours the tube by that field, with a colour bar.
 
         Parameters
         ----------
@@ -558,8 +563,9 @@ class Result:
         per_element : int, default 8
             Samples of the centreline per element.
         **kwargs
-            Passed to :func:`skfem_rod.render.render_rod` (``window_size``,
-            ``camera``, ``title``, ``glyphs``, ``contact_colors`` ...).
+            ``color_by``, or passed to :func:`skfem_rod.render.render_rod`
+            (``window_size``, ``camera``, ``title``, ``glyphs``,
+            ``contact_colors``, ``reference=None`` to hide the ghost ...).
 
         Returns
         -------
@@ -574,7 +580,7 @@ class Result:
         >>> result.render("cantilever.png", window_size=(320, 240), title="cantilever")
         'cantilever.png'
         """
-        from .render import render_rod
+        from .render import FIELD_LABELS, render_rod
         f = self.sample(per_element, step)
         if radius is None:
             radius = self.rod.section.radius or 0.01 * self.rod.length
@@ -582,7 +588,205 @@ class Result:
             pts = self.contact_points(step)
             if len(pts):
                 kwargs["contact_points"] = pts
-                if self.steps[step].contact.friction and "contact_colors" not in kwargs:
-                    from .render import contact_state_colors
-                    kwargs["contact_colors"] = contact_state_colors(self.contact_states(step))
+                if (self.steps[step].contact.friction and "contact_colors" not in kwargs
+                        and "contact_states" not in kwargs):
+                    kwargs["contact_states"] = self.contact_states(step)
+        color_by = kwargs.pop("color_by", None)
+        if color_by is not None and "scalars" not in kwargs:
+            kwargs["scalars"] = self._line_fields(f, step)[color_by]
+            kwargs.setdefault("scalar_label", FIELD_LABELS.get(color_by, color_by))
+        for key, value in self._scene_extras(step, per_element).items():
+            kwargs.setdefault(key, value)
         return render_rod(filename, f["r"], f["R"], radius, **kwargs)
+
+    # notebooks -----------------------------------------------------------
+    def _line_fields(self, f, step=-1):
+        """Scalar and vector fields at the samples ``f`` (from :meth:`sample`)
+        of a step: the arrays of :meth:`to_pyvista`."""
+        c = self.steps[step].contact
+        n = len(f["s"])
+        curv = np.linalg.norm(f["u"][:, :2] - f["u0"][:, :2], axis=1)
+        fields = dict(arclength=f["s"], force=f["n"], moment=f["m"],
+                      moment_magnitude=np.linalg.norm(f["m"], axis=1),
+                      force_magnitude=np.linalg.norm(f["n"], axis=1),
+                      twist=f["u"][:, 2] - f["u0"][:, 2], curvature=curv,
+                      stretch=f["v"][:, 2] - f["v0"][:, 2],
+                      shear=np.linalg.norm(f["v"][:, :2] - f["v0"][:, :2], axis=1),
+                      strain_v=f["v"] - f["v0"], strain_u=f["u"] - f["u0"],
+                      contact_force=np.zeros(n), contact_state=np.full(n, -1))
+        if c is not None and c.s.size:
+            k = np.abs(f["s"][None, :] - c.s[:, None]).argmin(axis=1)
+            np.maximum.at(fields["contact_force"], k, c.force)
+            np.maximum.at(fields["contact_state"], k, self.contact_states(step))
+        return fields
+
+    def _scene_extras(self, step=-1, per_element=8):
+        """Reference ghost (step 0), supports and loads of a step, as the
+        keyword arguments ``reference``, ``supports``, ``loads`` of
+        :func:`skfem_rod.render.render_rod`."""
+        rod, st = self.rod, self.steps[step]
+        f0 = self.sample(per_element, 0)
+        supports = []
+        for node, sup in rod.supports.items():
+            pos, rot = np.all(sup.position), np.all(sup.rotation)
+            turned = np.any(sup.rotation_vector != 0) or np.any(sup.displacement != 0)
+            kind = ("turn" if turned and rot else "clamp" if pos and rot else
+                    "pin" if pos else "slide")
+            supports.append({"point": st.r[node], "kind": kind})
+        loads = []
+        for ld in getattr(rod, "point_loads", ()):
+            lam = 1.0 if ld.constant else st.load_factor
+            v = np.asarray(ld.vector, float) * lam
+            if ld.follower:
+                v = st.R[ld.node] @ np.asarray(ld.vector, float) * lam
+            if np.linalg.norm(v) > 0:
+                loads.append({"point": st.r[ld.node], "vector": v, "kind": ld.kind})
+        moved = step not in (0, -len(self.steps))
+        return {"reference": (f0["r"], f0["R"]) if moved else None,
+                "supports": supports, "loads": loads}
+
+    def to_pyvista(self, step=-1, per_element=8, radius=None, n_around=24):
+        """The rod at a step as a tube (``pyvista.PolyData``) carrying the
+        mechanical fields, for notebooks and ParaView.
+
+        Point data (per tube point, from the centreline sample of its ring;
+        the ``d1`` stripe arrays of :func:`skfem_rod.render.tube_mesh` too):
+        ``arclength``; ``force``, ``moment`` (3-vectors: the stress
+        resultants ``n``, ``m``) and their magnitudes ``force_magnitude``,
+        ``moment_magnitude``; ``twist`` (``u3 - u3⁰``), ``curvature``
+        (``|u₁₂ - u₁₂⁰|``), ``stretch`` (``v3 - v3⁰``), ``shear``;
+        ``strain_v``, ``strain_u`` (3-vectors, material frame);
+        ``contact_force`` (``f_N`` per unit length at the sample nearest to
+        each active contact point, else 0) and ``contact_state`` (-1 no
+        contact, else 0 open/frictionless, 1 stick, 2 slip).
+
+        Parameters
+        ----------
+        step : int, default -1
+        per_element : int, default 8
+            Samples of the centreline per element.
+        radius : float, optional
+            Tube radius; default the section's radius (else 1 % of the length).
+        n_around : int, default 24
+            Points per ring.
+
+        Returns
+        -------
+        pyvista.PolyData
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> tube = result.to_pyvista()
+        >>> tube.n_points, "moment" in tube.point_data, int(tube.point_data["contact_state"].max())
+        (842, True, -1)
+        >>> round(float(tube.point_data["moment_magnitude"].max()), 3)   # about P L at the clamp
+        0.01
+        """
+        from .render import _tube_point_values, tube_mesh
+        f = self.sample(per_element, step)
+        if radius is None:
+            radius = self.rod.section.radius or 0.01 * self.rod.length
+        tube = tube_mesh(f["r"], f["R"], radius, n_around=n_around)
+        n = len(f["s"])
+        for name, value in self._line_fields(f, step).items():
+            value = np.asarray(value)
+            if value.ndim == 1:
+                tube.point_data[name] = _tube_point_values(value, n, n_around)
+            else:
+                tube.point_data[name] = np.vstack(
+                    [np.repeat(value, n_around, axis=0),
+                     np.repeat(value[:1], n_around + 1, axis=0),
+                     np.repeat(value[-1:], n_around + 1, axis=0)])
+        tube.field_data["load_factor"] = np.array([self.steps[step].load_factor])
+        return tube
+
+    def plot(self, ax=None, step=-1, plane=None, reference=True, contacts=True,
+             per_element=8, **kwargs):
+        """Draw the centreline of a step with matplotlib.
+
+        The reference shape (step 0) is drawn dashed grey, active contact
+        points as dots (frictionless purple, stick green, slip orange: the
+        colours of :mod:`skfem_rod.render`), supports as squares.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            A 3D axes (``projection="3d"``) draws in 3D; a 2D axes draws the
+            projection on ``plane``.  Default: a new 3D axes.
+        step : int, default -1
+        plane : str, optional
+            ``"xy"``, ``"xz"`` or ``"yz"`` for a 2D axes (default ``"xy"``).
+        reference, contacts : bool, default True
+            Draw the reference shape; mark the contact points.
+        per_element : int, default 8
+        **kwargs
+            Passed to ``ax.plot`` for the centreline.
+
+        Returns
+        -------
+        matplotlib Axes
+
+        Examples
+        --------
+        >>> import matplotlib
+        >>> matplotlib.use("Agg")
+        >>> import matplotlib.pyplot as plt
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> result = rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> ax = result.plot(plt.figure().add_subplot(), plane="xy")
+        >>> ax.get_xlabel(), ax.get_ylabel()
+        ('x', 'y')
+        """
+        import matplotlib.pyplot as plt
+
+        from .render import CONTACT_COLOR, REFERENCE_COLOR, ROD_COLOR, STATE_COLORS
+        if ax is None:
+            ax = plt.figure().add_subplot(projection="3d")
+        three_d = hasattr(ax, "get_zlim")
+        axis = {"x": 0, "y": 1, "z": 2}
+        plane = plane or "xy"
+        if three_d:
+            cols = [0, 1, 2]
+        elif len(plane) == 2 and set(plane) <= set(axis) and plane[0] != plane[1]:
+            cols = [axis[c] for c in plane]
+        else:
+            raise ValueError(f"plane = {plane!r}; expected 'xy', 'xz' or 'yz'")
+
+        def draw(points, **kw):
+            return ax.plot(*(points[:, c] for c in cols), **kw)
+
+        f = self.sample(per_element, step)
+        if reference and step not in (0, -len(self.steps)):
+            draw(self.sample(per_element, 0)["r"], color=REFERENCE_COLOR, ls="--", lw=1.2,
+                 label="reference")
+        kw = dict(color=ROD_COLOR, lw=2.5, label=f"load factor {self.steps[step].load_factor:.3g}")
+        kw.update(kwargs)
+        draw(f["r"], **kw)
+        st = self.steps[step]
+        sup = np.array([st.r[n] for n in self.rod.supports]).reshape(-1, 3)
+        if len(sup):
+            draw(sup, ls="none", marker="s", ms=8, color="#555555", label="support")
+        if contacts:
+            pts, states = self.contact_points(step), self.contact_states(step)
+            if len(pts):
+                friction = st.contact.friction
+                colors = [STATE_COLORS[k] if friction else CONTACT_COLOR for k in states]
+                ax.scatter(*(pts[:, c] for c in cols), c=colors, s=18, zorder=3,
+                           label="contact")
+        for c, name in zip(cols, ("xlabel", "ylabel", "zlabel")):
+            getattr(ax, f"set_{name}")("xyz"[c])
+        if three_d:                       # equal scales: a cube around what is drawn
+            pts = np.vstack([f["r"], self.sample(per_element, 0)["r"]] if reference
+                            else [f["r"]])
+            centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+            half = np.ptp(pts, axis=0).max() / 2 or 1.0
+            for c, name in zip(cols, ("xlim", "ylim", "zlim")):
+                getattr(ax, f"set_{name}")(centre[c] - half, centre[c] + half)
+            ax.set_box_aspect((1, 1, 1))
+        else:
+            ax.set_aspect("equal", adjustable="datalim")
+        return ax

@@ -289,3 +289,124 @@ def test_render_rod_twisted_png(tmp_path):
     rows_straight = np.unique(np.nonzero(near(mpimg.imread(straight)[..., :3], STRIPE_COLOR))[0])
     rows_twisted = np.unique(np.nonzero(stripe)[0])
     assert len(rows_straight) > 1.3 * len(rows_twisted)
+
+
+# --------------------------------------------------------------------------
+# notebook-friendly rendering: no global side effects, no VTK noise
+# --------------------------------------------------------------------------
+def test_render_is_quiet_and_leaves_pyvista_settings_alone(tmp_path):
+    """A render in a fresh interpreter prints nothing from VTK on stderr
+    ("bad X server connection" on a headless machine) and does not switch
+    pyvista.OFF_SCREEN globally."""
+    pytest.importorskip("pyvista")
+    import subprocess
+
+    code = (
+        "import numpy as np, pyvista\n"
+        "from skfem_rod.render import render_rod, render_animation\n"
+        "s = np.linspace(0, 1, 20); p = np.c_[s, 0 * s, 0 * s]\n"
+        "R = np.repeat(np.eye(3)[None][:, :, [1, 2, 0]], 20, axis=0)\n"
+        "render_rod('a.png', p, R, 0.02, window_size=(160, 120), title='γ')\n"
+        "render_animation('a.gif', [(p, R), (p, R)], 0.02, window_size=(160, 120))\n"
+        "print('OFF_SCREEN', pyvista.OFF_SCREEN)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert "OFF_SCREEN False" in proc.stdout
+    assert "bad X server" not in proc.stderr
+    assert "vtk" not in proc.stderr.lower(), proc.stderr
+
+
+def _cantilever(n_steps=2):
+    from skfem_rod import Rod, Section, geometry
+
+    rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+    return rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).solve(n_steps)
+
+
+def test_to_pyvista_carries_the_mechanical_fields():
+    pytest.importorskip("pyvista")
+    result = _cantilever()
+    tube = result.to_pyvista(n_around=12)
+    f = result.sample(8)
+    n = len(f["s"])
+    assert tube.n_points == n * 12 + 2 * 13
+    for name in ("moment", "force", "moment_magnitude", "twist", "curvature", "stretch",
+                 "strain_v", "strain_u", "contact_force", "contact_state", "arclength"):
+        assert name in tube.point_data, name
+    assert tube.point_data["moment"].shape == (tube.n_points, 3)
+    # ring i carries sample i: the clamp moment P L, the tip moment 0
+    m = tube.point_data["moment_magnitude"]
+    assert m[0] == pytest.approx(np.linalg.norm(f["m"][0]))
+    assert m[(n - 1) * 12] == pytest.approx(np.linalg.norm(f["m"][-1]), abs=1e-12)
+    assert m.max() == pytest.approx(0.01, rel=2e-3)          # P times the lever arm
+    assert np.all(tube.point_data["contact_state"] == -1)     # no contact
+    assert tube.field_data["load_factor"][0] == 1.0
+
+
+def test_result_plot_draws_the_centreline_and_reference():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    result = _cantilever()
+    ax = result.plot(plt.figure().add_subplot(), plane="xy")
+    lines = ax.get_lines()
+    assert [ln.get_label() for ln in lines][:2] == ["reference", "load factor 1"]
+    tip = result.position([1.0])[0]
+    assert np.allclose(lines[1].get_xydata()[-1], tip[:2])
+    ax3 = result.plot()                                   # a new 3D axes
+    assert hasattr(ax3, "get_zlim")
+    with pytest.raises(ValueError, match="plane"):
+        result.plot(plt.figure().add_subplot(), plane="xx")
+    plt.close("all")
+
+
+def test_result_render_colours_by_a_field_with_supports_and_loads(tmp_path):
+    pytest.importorskip("pyvista")
+    result = _cantilever()
+    extras = result._scene_extras()
+    assert [s["kind"] for s in extras["supports"]] == ["clamp"]
+    assert [ld["kind"] for ld in extras["loads"]] == ["force"]
+    assert extras["reference"] is not None
+    png = result.render(tmp_path / "c.png", window_size=(480, 360), color_by="moment_magnitude",
+                        title="cantilever: |m| from P L to 0, γ = 0")
+    from PIL import Image
+
+    img = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    assert img.shape == (360, 480, 3)
+    # the viridis colour bar in the right band: its darkest (purple) and
+    # brightest (yellow) ends are there
+    band = img[:, -int(0.25 * 480):]
+    assert ((band[..., 0] > 200) & (band[..., 1] > 200) & (band[..., 2] < 80)).sum() > 20
+    assert ((band[..., 0] < 90) & (band[..., 1] < 30) & (band[..., 2] > 60)).sum() > 20
+
+
+def test_gif_keeps_the_stick_and_slip_colours(tmp_path):
+    """The GIF palette holds the contact-state colours: green (stick) and
+    orange (slip) markers stay green and orange in every frame."""
+    pytest.importorskip("pyvista")
+    from PIL import Image, ImageSequence
+
+    from skfem_rod.render import STATE_COLORS, render_animation
+
+    s = np.linspace(0, 1, 40)
+    confs, cps = [], []
+    for k in range(3):
+        a = 0.5 + k
+        p = np.c_[np.sin(a * s) / a, (1 - np.cos(a * s)) / a, 0 * s]
+        t = np.c_[np.cos(a * s), np.sin(a * s), 0 * s]
+        d2 = np.tile([0.0, 0, 1], (40, 1))
+        confs.append((p, np.stack([np.cross(d2, t), d2, t], axis=-1)))
+        cps.append(p[[10, 20, 30]])
+    path = render_animation(tmp_path / "states.gif", confs, 0.03, window_size=(320, 240),
+                            contact_points=cps, contact_states=[[1, 2, 1]] * 3,
+                            titles=["γ_T = 0.2"] * 3, camera="xy", legend=False)
+    frames = [np.asarray(f.convert("RGB")).astype(int)
+              for f in ImageSequence.Iterator(Image.open(path))]
+    for k in (1, 2):
+        c = np.array([int(STATE_COLORS[k][i:i + 2], 16) for i in (1, 3, 5)])
+        for f in frames:
+            assert (np.abs(f - c).max(axis=-1) <= 12).sum() > 20, STATE_COLORS[k]
