@@ -13,11 +13,25 @@ the chord between two points ``Delta s`` apart is at least
 ``2 eps sin(Delta s / (2 eps))``, which first reaches the contact distance
 ``2 eps`` at ``Delta s = pi eps``: the default is ``exclusion = pi eps``.
 
-*Broad phase.*  A k-d tree (``scipy.spatial.cKDTree``) of element bounding
-spheres gives, for every slave, the master elements within reach: cost
-``O(n log n)``, not ``O(n^2)``.  Each candidate gets a rigorous lower bound
-of its distance (to the capsules around the chords of the element's three
-sub-arcs, :func:`_capsules`); candidates bounded beyond ``reach`` go.
+*Closed rods.*  On a closed rod (``mesh.closed``) arclength distances are
+periodic, ``min(|s - sigma|, L - |s - sigma|)``: the exclusion wraps around
+the closure point, so an unloaded ring has no contact.
+
+*Broad phase.*  A branch and bound down a hierarchy of element capsules
+(:func:`_broad_phase`, :func:`_hierarchy`): nodes of ``4^k`` consecutive
+elements, each a chord with a rigorous bound of the curve's distance from
+it.  It starts with a k-d tree query (``scipy.spatial.cKDTree``) at the
+level whose nodes are about ``reach`` long and descends level by level,
+dropping before they are expanded the nodes wholly inside the slave's
+exclusion (its own neighbours) and those farther than an upper bound of the
+slave's closest admissible distance.  The candidates alive per slave stay
+bounded whatever the ratio of element size to contact radius, so memory
+and time grow linearly with the number of elements
+(``benchmarks/bench_search.py``; the exhaustive query of every element
+within reach grew as ``n^2`` when elements are shorter than the radius).
+Each candidate gets a rigorous lower bound of its distance (to the
+capsules around the chords of the element's three sub-arcs,
+:func:`_capsules`); candidates bounded beyond ``reach`` go.
 
 *Narrow phase.*  A safeguarded Newton projection of the slave point on a
 candidate cubic element (parameter clamped to the element, started from
@@ -167,12 +181,158 @@ def _capsules(r_el, parts=3):
     return p0, p1, dev
 
 
+def arc_distance(a, b, period=None):
+    """Arclength distance ``|a - b|``, periodic (``min(|a - b|, P - |a - b|)``)
+    for a closed rod of length ``period``."""
+    d = np.abs(a - b)
+    return d if period is None else np.minimum(d, period - d)
+
+
+def _inside_exclusion(lo, hi, s, exclusion, period=None):
+    """Arcs ``[lo, hi]`` wholly inside the excluded neighbourhood
+    ``(s - exclusion, s + exclusion)`` (taken modulo ``period`` on a closed
+    rod)."""
+    if period is None:
+        return (lo > s - exclusion) & (hi < s + exclusion)
+    t = np.mod(lo - (s - exclusion), period)
+    return (t > 0) & (t + (hi - lo) < 2.0 * exclusion)
+
+
+def _outside_exclusion(lo, hi, s, exclusion, period=None):
+    """Arcs ``[lo, hi]`` wholly outside ``(s - exclusion, s + exclusion)``."""
+    if period is None:
+        return (lo >= s + exclusion) | (hi <= s - exclusion)
+    t = np.mod(lo - (s + exclusion), period)
+    return t + (hi - lo) <= period - 2.0 * exclusion
+
+
+def _period(mesh):
+    """The rod's length if it is closed (periodic arclength), else None."""
+    if getattr(mesh, "closed", False):
+        return float(mesh.vertices[-1] - mesh.vertices[0])
+    return None
+
+
+#: children per node of the capsule hierarchy of the broad phase
+BRANCHING = 4
+
+
+def _segment_distance(x, a, b):
+    """Distance of points ``x`` to segments ``[a, b]`` and the segment
+    parameter ``t`` of the closest point (all ``(3, m)``: component major,
+    every operation on contiguous rows)."""
+    ab = b - a
+    xa = x - a
+    den = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
+    t = (xa[0] * ab[0] + xa[1] * ab[1] + xa[2] * ab[2]) / np.maximum(den, 1e-300)
+    np.clip(t, 0.0, 1.0, out=t)
+    xa -= t * ab
+    return np.sqrt(xa[0] * xa[0] + xa[1] * xa[1] + xa[2] * xa[2]), t
+
+
+def _norm3(d):
+    """Norms of the columns of ``d`` ``(3, m)``."""
+    return np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+
+
+def _hierarchy(r_el, branching=BRANCHING):
+    """Capsule hierarchy over the elements in arclength order.
+
+    Level ``k`` has nodes of ``branching^k`` consecutive elements (the last
+    one shorter); a node is the chord between its end vertices and a bound
+    ``dev`` on the distance of its curve from that chord: for the elements
+    that of :func:`_capsules`, for a parent the largest over its children
+    of the child's bound plus the distance of the child's chord from the
+    parent's (a convex function: largest at the child's chord ends).  Per
+    level ``(first, last, dev)``: first and one-past-last element (the
+    chord runs from vertex ``first`` to vertex ``last``)."""
+    ne = r_el.shape[0]
+    vx = np.concatenate([r_el[:, 0], r_el[-1:, 1]])          # vertex positions
+    vxT = np.ascontiguousarray(vx.T)
+    _, _, edev = _capsules(r_el, 1)
+    first = np.arange(ne)
+    levels = [(first, first + 1, edev[:, 0])]
+    size = 1
+    while first.size > 1:
+        cf, cl, cd = levels[-1]
+        size *= branching
+        first = np.arange(0, ne, size)
+        last = np.minimum(first + size, ne)
+        m = first.size
+        pad = np.minimum(np.arange(m * branching), cf.size - 1).reshape(m, branching)
+        a = np.repeat(vxT[:, first], branching, axis=1)
+        b = np.repeat(vxT[:, last], branching, axis=1)
+        d0, _ = _segment_distance(vxT[:, cf[pad].ravel()], a, b)
+        d1, _ = _segment_distance(vxT[:, cl[pad].ravel()], a, b)
+        dev = (cd[pad] + np.maximum(d0, d1).reshape(m, branching)).max(axis=1)
+        levels.append((first, last, dev))
+    return vxT, levels
+
+
+def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BRANCHING):
+    """Candidate (slave, element) pairs: the elements not wholly inside the
+    slave's excluded arclength whose capsule comes closer than ``reach``
+    and than an upper bound of the slave's closest admissible distance.
+
+    Branch and bound down the capsule hierarchy (:func:`_hierarchy`),
+    vectorized over the slaves level by level.  It starts at the level
+    whose nodes are about ``reach`` long (a k-d tree query of the slaves
+    against the nodes' bounding spheres: a bounded number per slave); at
+    every level it drops the nodes wholly inside the slave's exclusion
+    (its own neighbours) before they are expanded, and the nodes whose
+    lower bound (distance to the chord minus ``dev``) exceeds an upper
+    bound of the closest admissible distance: the distance to the vertex
+    nearest the slave's projection on a chord, if that vertex is at least
+    ``exclusion + h_max`` from the slave (the element beside it then lies
+    wholly outside the exclusion, and its projection is at most that far).
+    The pairs alive per slave stay bounded for any ratio of element size to
+    radius: memory and time linear in the number of elements."""
+    vxT, levels = _hierarchy(r_el, branching)
+    xT = np.ascontiguousarray(x.T)
+    h = np.diff(vertices)
+    h_mean, h_max = h.mean(), h.max()
+    K = 0
+    while K + 1 < len(levels) and branching ** (K + 1) * h_mean <= reach:
+        K += 1
+    f, l, dev = levels[K]
+    centre = 0.5 * (vxT[:, f] + vxT[:, l]).T
+    rad = 0.5 * _norm3(vxT[:, l] - vxT[:, f]) + dev
+    tree_s, tree_c = cKDTree(x), cKDTree(centre)
+    cand = tree_s.sparse_distance_matrix(tree_c, rad.max() + reach, output_type="ndarray")
+    i, j = cand["i"].astype(np.int64), cand["j"].astype(np.int64)
+    ub = np.full(x.shape[0], np.inf)
+    for k in range(K, -1, -1):
+        f, l, dev = levels[k]
+        fj, lj = f[j], l[j]
+        keep = ~_inside_exclusion(vertices[fj], vertices[lj], s_sl[i], exclusion, period)
+        i, j, fj, lj = i[keep], j[keep], fj[keep], lj[keep]
+        xi = xT[:, i]
+        dist, t = _segment_distance(xi, vxT[:, fj], vxT[:, lj])
+        lb = dist - dev[j]
+        v = fj + np.rint(t * (lj - fj)).astype(np.int64)
+        ok = np.flatnonzero(arc_distance(vertices[v], s_sl[i], period) >= exclusion + h_max)
+        np.minimum.at(ub, i[ok], _norm3(xi[:, ok] - vxT[:, v[ok]]))
+        keep = (lb < reach) & (lb <= ub[i] * (1.0 + 1e-10))
+        i, j = i[keep], j[keep]
+        if k == 0:
+            break
+        n_child = levels[k - 1][0].size
+        j = (branching * j[:, None] + np.arange(branching)).ravel()
+        i = np.repeat(i, branching)
+        keep = j < n_child
+        i, j = i[keep], j[keep]
+    keep = lb[keep] <= ub[i] * (1.0 + 1e-10)
+    return i[keep], j[keep]
+
+
 def search(mesh, r, slaves, reach, exclusion):
     """All slave/master pairs with a centreline distance below ``reach``.
 
     Parameters
     ----------
     mesh : RodMesh
+        On a closed rod (``mesh.closed``) arclength distances are periodic:
+        the exclusion wraps around the closure point.
     r : (n_nodes, 3) nodal positions
     slaves : Slaves
     reach : float
@@ -182,62 +342,53 @@ def search(mesh, r, slaves, reach, exclusion):
 
     Notes
     -----
-    The candidates (slave, master element) come from a k-d tree of element
-    bounding spheres; each gets a lower bound of its distance, that to the
-    element's chord capsule (:func:`_capsules`).  Per slave, the candidate
-    with the smallest bound (preferring elements wholly outside ``I_s``) is
-    projected first; then only candidates whose bound is below the closest
-    admissible distance found so far are projected.  The answer is the same
-    as projecting every candidate (a skipped candidate cannot be closer),
-    at a cost per slave that does not grow under mesh refinement.
+    The candidates (slave, master element) come from a branch and bound
+    down a hierarchy of element bounding spheres (:func:`_broad_phase`),
+    which prunes the slave's own neighbours by the exclusion length and far
+    elements by an upper bound of the closest distance before they are
+    materialized; each candidate gets a lower bound of its distance, that
+    to the element's chord capsule (:func:`_capsules`).  Per slave, the
+    candidate with the smallest bound (preferring elements wholly outside
+    ``I_s``) is projected first; then only candidates whose bound is below
+    the closest admissible distance found so far are projected.  The
+    answer is the same as projecting every element (a skipped candidate
+    cannot be closer), at a cost per slave that does not grow under mesh
+    refinement.
     """
     ne, ns = slaves.s.shape
+    period = _period(mesh)
+    v = mesh.vertices
     r_el = r[mesh.nodes]                                     # (ne, 4, 3)
     C = _coefficients(r_el).transpose(1, 2, 0)               # (4, 3, ne)
     x = np.einsum("qI,eIc->eqc", slaves.N, r_el).reshape(-1, 3)
     s_sl = slaves.s.ravel()
     p0, p1, dev = _capsules(r_el)                            # sub-arc capsules
-    # bounding spheres of the whole element curves (rigorous: whole chord
-    # capsule, deviation bounded as for the sub-arcs)
-    e0, e1, edev = _capsules(r_el, 1)
-    centre = 0.5 * (e0[:, 0] + e1[:, 0])
-    rad = 0.5 * np.linalg.norm(e1[:, 0] - e0[:, 0], axis=1) + edev[:, 0]
-    tree_s, tree_c = cKDTree(x), cKDTree(centre)
-    cand = tree_s.sparse_distance_matrix(tree_c, rad.max() + reach, output_type="ndarray")
-    i, j = cand["i"].astype(np.int64), cand["j"].astype(np.int64)
-    keep = cand["v"] <= rad[j] + reach
-    # drop master elements that lie entirely inside the excluded arclength
-    lo, hi = mesh.vertices[j], mesh.vertices[j + 1]
-    si = s_sl[i]
-    keep &= (lo <= si - exclusion) | (hi >= si + exclusion)
-    i, j = i[keep], j[keep]
+    i, j = _broad_phase(x, s_sl, r_el, v, reach, exclusion, period)
+    order = np.lexsort((j, i))                               # deterministic order
+    i, j = i[order], j[order]
     # lower bound of the distance: to the nearest sub-arc capsule
+    xT = np.ascontiguousarray(x.T)
+    xi_ = xT[:, i]
     lb = np.full(i.size, np.inf)
     for q in range(p0.shape[1]):
-        a0 = p0[j, q]
-        xp = x[i] - a0
-        cj = p1[j, q] - a0
-        t = np.clip(np.einsum("ij,ij->i", xp, cj)
-                    / np.maximum(np.einsum("ij,ij->i", cj, cj), 1e-300), 0.0, 1.0)
-        lb = np.minimum(lb, np.linalg.norm(xp - t[:, None] * cj, axis=1) - dev[j, q])
+        dq, _ = _segment_distance(xi_, np.ascontiguousarray(p0[:, q].T)[:, j],
+                                  np.ascontiguousarray(p1[:, q].T)[:, j])
+        np.minimum(lb, dq - dev[j, q], out=lb)
     keep = lb < reach
     i, j, lb = i[keep], j[keep], lb[keep]
     if i.size == 0:
         return _empty(0)
-    si = s_sl[i]
-    outside = (mesh.vertices[j] >= si + exclusion) | (mesh.vertices[j + 1] <= si - exclusion)
+    outside = _outside_exclusion(v[j], v[j + 1], s_sl[i], exclusion, period)
     order = np.lexsort((lb, ~outside, i))
     first = order[np.r_[True, i[order][1:] != i[order][:-1]]]
-
-    xT = np.ascontiguousarray(x.T)
 
     def narrow(k):
         jk = j[k]
         xi, interior, y = _project(xT[:, i[k]], C[:, :, jk])
-        s_bar = mesh.vertices[jk] + xi * (mesh.vertices[jk + 1] - mesh.vertices[jk])
+        s_bar = v[jk] + xi * (v[jk + 1] - v[jk])
         dvec = (xT[:, i[k]] - y).T
         dist = np.linalg.norm(dvec, axis=1)
-        ok = (np.abs(s_bar - s_sl[i[k]]) >= exclusion) & (dist < reach) & (dist > 0)
+        ok = (arc_distance(s_bar, s_sl[i[k]], period) >= exclusion) & (dist < reach) & (dist > 0)
         return k[ok], xi[ok], interior[ok], s_bar[ok], dvec[ok], dist[ok]
 
     r1 = narrow(first)
@@ -249,7 +400,7 @@ def search(mesh, r, slaves, reach, exclusion):
     second = np.flatnonzero(rest)
     n_cand = first.size + second.size
     r2 = narrow(second)
-    k, xi, interior, s_bar, dvec, dist = (np.concatenate([u, v]) for u, v in zip(r1, r2))
+    k, xi, interior, s_bar, dvec, dist = (np.concatenate([u, w]) for u, w in zip(r1, r2))
     if k.size == 0:
         return _empty(n_cand)
     ik = i[k]

@@ -1,0 +1,146 @@
+"""Contact search with the bounded broad phase (skfem_rod.contact.search):
+the same pairs as the exhaustive search of tests/search_reference.py on the
+scenes of the contact tests; a number of candidates per slave that does not
+grow when the elements get much shorter than the contact radius; and the
+periodic exclusion of closed rods (an unloaded ring has no contact, the
+pairs of a pinched ring do not depend on where its closure point is)."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod, Section, geometry
+from skfem_rod.contact import search as search_mod
+from skfem_rod.contact.search import search, slave_points
+
+from search_reference import search_dense
+from test_contact import SEC, hairpin
+from test_contact_scaling import plect_rod
+
+
+def _same_pairs(a, b):
+    """Same slaves, distances, master points and normals (the master
+    element may differ where the projection is a vertex shared by two
+    elements: the same point)."""
+    assert np.array_equal(a.slave, b.slave)
+    assert np.array_equal(a.distance, b.distance)
+    assert np.array_equal(a.s_bar, b.s_bar)
+    assert np.abs(a.normal - b.normal).max() < 1e-12
+    assert np.array_equal(a.weight, b.weight)
+    diff = a.m_elem != b.m_elem
+    assert np.all(np.isin(a.m_xi[diff], [0.0, 1.0])) and np.all(np.isin(b.m_xi[diff], [0.0, 1.0]))
+    same = ~diff
+    assert np.array_equal(a.m_xi[same], b.m_xi[same])
+    assert np.array_equal(a.normal[same], b.normal[same])
+    assert np.array_equal(a.interior[same], b.interior[same])
+    assert a.n_candidates <= b.n_candidates
+
+
+SCENES = [("hairpin", n, noise) for n in (16, 64, 256, 1000) for noise in (0.0, 0.003)] + [
+    ("plectoneme", n, noise) for n in (100, 200) for noise in (0.0, 0.2)] + [
+    ("helix", 400, 0.0), ("helix", 400, 0.3)]
+
+
+@pytest.mark.parametrize("scene, n, noise", SCENES)
+def test_search_equals_exhaustive_reference(scene, n, noise):
+    rng = np.random.default_rng(n + int(100 * noise))
+    if scene == "hairpin":
+        eps = 0.105
+        rod = Rod(hairpin(eps, 0.2, leg=1.0), SEC, n)
+        reach, excl, scale = 2 * eps + 0.05, np.pi * eps, 1.0
+    elif scene == "plectoneme":
+        eps, rod = 1.0, plect_rod(n)
+        reach, excl, scale = 3.0, np.pi, 1.0
+    else:                                   # turns 2.2 eps apart, h ~ 3 eps
+        eps = 0.01
+        rod = Rod(geometry.helix(radius=0.1, pitch=2.2 * eps, turns=4),
+                  Section(EA=1, GA1=1, GA2=1, EI1=1, EI2=1, GJ=1, radius=eps), n)
+        reach, excl, scale = 3 * eps, np.pi * eps, eps
+    r = rod.r0 + noise * scale * rng.normal(size=rod.r0.shape)
+    sl = slave_points(rod.mesh, 3)
+    new = search(rod.mesh, r, sl, reach, excl)
+    assert new.size > 0
+    _same_pairs(new, search_dense(rod.mesh, r, sl, reach, excl))
+
+
+@pytest.mark.parametrize("length", [5000.0, 800.0])
+def test_broad_phase_candidates_per_slave_bounded(length):
+    """Hairpin with touching legs, contact radius 1, element size from 10
+    down to 0.1 radii: the (slave, element) candidates the broad phase
+    materializes stay a few per slave (the exhaustive k-d tree query grows
+    as the number of elements within reach, 60 per slave at h = 0.1)."""
+    import sys
+    import pathlib
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_search import hairpin_mesh
+    per_slave = []
+    for n in (500, 2000, 8000):
+        mesh, r = hairpin_mesh(length, n)
+        sl = slave_points(mesh, 3)
+        x = np.einsum("qI,eIc->eqc", sl.N, r[mesh.nodes]).reshape(-1, 3)
+        i, j = search_mod._broad_phase(x, sl.s.ravel(), r[mesh.nodes], mesh.vertices,
+                                       3.0, np.pi, None)
+        per_slave.append(i.size / x.shape[0])
+    assert max(per_slave) <= 4.0, per_slave
+
+
+def test_hairpin_mesh_numbering_is_rodmesh():
+    """The benchmark's light-weight mesh numbers nodes as RodMesh does."""
+    import sys
+    import pathlib
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_search import hairpin_mesh
+    mesh, r = hairpin_mesh(40.0, 12)
+    rod = Rod(hairpin(0.99, 1.98, leg=(40.0 - np.pi * 0.99) / 2), SEC, 12)
+    assert np.array_equal(mesh.nodes, rod.mesh.nodes)
+    assert np.allclose(mesh.vertices, rod.mesh.vertices)
+    assert np.abs(r - rod.r0).max() < 1e-9
+
+
+def _pinched_ring(n, eps, shift=0):
+    """A ring of radius 1 squeezed in the middle (a peanut: its two halves
+    come within 1.9 eps at x = 0); its closure point is at the waist
+    (``shift = 0``) or ``shift`` elements further on."""
+    rod = Rod(geometry.ring(1.0), SEC, n)
+    assert rod.mesh.closed
+    a = 0.95 * eps
+    theta = rod.mesh.s_nodes + np.pi / 2 + 2 * np.pi * shift / n      # s = 0 at the waist
+    r = np.stack([np.cos(theta), np.sin(theta) * (a + (1 - a) * np.cos(theta) ** 2),
+                  0 * theta], axis=1)
+    return rod, r
+
+
+def test_unloaded_ring_has_no_contact():
+    """The exclusion is periodic: slaves beside the closure point do not
+    see their neighbours across it (the non-periodic search does)."""
+    eps = 0.05
+    rod = Rod(geometry.ring(1.0), SEC, 64)
+    sl = slave_points(rod.mesh, 3)
+    reach, excl = 3 * eps, np.pi * eps
+    pairs = search(rod.mesh, rod.r0, sl, reach, excl)
+    assert pairs.size == 0
+    near = search_dense(rod.mesh, rod.r0, sl, reach, excl)      # the old, open exclusion
+    assert near.size > 0 and np.all(np.minimum(near.s, rod.length - near.s) < excl)
+    # rotated and translated: still none
+    from skfem_rod.rotations import expm
+    Q = expm(np.array([0.4, -0.3, 1.2]))
+    assert search(rod.mesh, rod.r0 @ Q.T + 3.0, sl, reach, excl).size == 0
+
+
+def test_pinched_ring_pairs_do_not_depend_on_the_closure_point():
+    eps, n = 0.05, 96
+    out = []
+    for shift in (0, 7, 48):
+        rod, r = _pinched_ring(n, eps, shift)
+        sl = slave_points(rod.mesh, 3)
+        pairs = search(rod.mesh, r, sl, 3 * eps, np.pi * eps)
+        # the waist is in contact: its upper arc, which straddles the
+        # closure point when shift = 0, against the lower one (the tight
+        # lobes touch themselves too; no matter: the same everywhere)
+        s_top = (-2 * np.pi * shift / n) % rod.length
+        top = search_mod.arc_distance(pairs.s, s_top, rod.length) < 0.2
+        assert top.sum() >= 6
+        assert np.all(search_mod.arc_distance(pairs.s_bar[top], s_top + np.pi, rod.length) < 0.2)
+        assert np.all(search_mod.arc_distance(pairs.s, pairs.s_bar, rod.length) >= np.pi * eps)
+        out.append(np.sort(pairs.distance))
+    for o in out[1:]:
+        assert o.size == out[0].size
+        np.testing.assert_allclose(o, out[0], rtol=0, atol=1e-12)
