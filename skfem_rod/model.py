@@ -671,7 +671,8 @@ class Rod:
                 + ". Add a support (clamp, pin, fix_rotation or prescribe_*) that "
                 "removes them.")
 
-    def solve(self, n_steps=1, path=None, callback=None, start=None, **options):
+    def solve(self, n_steps=1, path=None, callback=None, start=None, progress=False,
+              **options):
         """Solve the equilibrium along the load path.
 
         Parameters
@@ -687,6 +688,11 @@ class Rod:
         callback : callable, optional
             ``callback(result, k)`` after each converged step ``k`` (e.g. a
             progress line).
+        progress : bool or {"bar", "log"}, default False
+            Report the converged steps: ``True`` a tqdm bar over pseudo-time
+            (a widget in notebooks; optional extra ``progress``), ``"log"``
+            INFO records on the ``skfem_rod`` logger
+            (:func:`skfem_rod.progress.step_reporter`).
         start : Result or (r, R), optional
             Start step 0 from this state instead of the reference: the last
             step of a Result (of a rod with the same mesh), or nodal
@@ -723,6 +729,14 @@ class Rod:
         >>> bool(result.energies[2] > 0 and abs(result.energies[-1]) < 1e-20)
         True
         """
+        from .progress import step_reporter
+        callback, close = step_reporter(progress, callback)
+        try:
+            return self._solve(n_steps, path, callback, start, **options)
+        finally:
+            close()
+
+    def _solve(self, n_steps, path, callback, start, **options):
         method = options.pop("method", "newton")
         if method == "arclength":
             if start is not None:
