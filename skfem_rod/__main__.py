@@ -172,7 +172,7 @@ def cmd_sweep(args):
     # SIGTERM: stop like Ctrl-C, closing the workers (finished points are on disk)
     before = signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     try:
-        from .sweep import sweep, sweep_directory
+        from .sweeps import sweep, sweep_directory
         ds = sweep(scene, out=args.out, scheduler=args.scheduler, n_workers=args.workers,
                    resume=not args.restart)
     except ModuleNotFoundError as err:

@@ -196,8 +196,9 @@ def validate_sweep(table, base, known=()):
         if not ok:
             continue
         labels = [_label(v) for v in out]
-        if len(set(labels)) != len(labels):
-            problems.append(f"{where} = {_show(values)}: the values must differ")
+        if mode != "zip" and len(set(labels)) != len(labels):
+            problems.append(f"{where} = {_show(values)}: the values of a grid axis must "
+                            "differ")
             continue
         params[key] = out
     if mode == "zip" and len({len(v) for v in params.values()}) > 1:
