@@ -34,7 +34,7 @@ import sys
 
 import numpy as np
 
-from .export import _atomic_path, _validate_points_frames
+from .export import atomic_path, validate_points_frames
 
 __all__ = ["tube_mesh", "render_rod", "ROD_COLOR", "STRIPE_COLOR", "STATE_NAMES",
            "STATE_COLORS", "CONTACT_COLOR", "contact_state_colors", "render_contact_states",
@@ -70,8 +70,14 @@ def _has_display():
 
 def _pyvista(off_screen=None):
     """Import pyvista (nothing global is changed: every plotter of this
-    module is created with ``off_screen=True``)."""
-    import pyvista
+    module is created with ``off_screen=True``).  Its import pulls in
+    ``tqdm.auto``, which warns "IProgress not found" in a notebook without
+    ipywidgets; that warning is dropped."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="IProgress not found")
+        import pyvista
 
     return pyvista
 
@@ -174,7 +180,7 @@ def tube_mesh(points, frames, radius, n_around=24, stripe_width=0.35, *, capped=
     pyvista.PolyData
     """
     pv = _pyvista()
-    points, frames = _validate_points_frames(points, frames)
+    points, frames = validate_points_frames(points, frames)
     n = points.shape[0]
     r = _radii(radius, n)
     if isinstance(n_around, bool) or int(n_around) != n_around or n_around < 3:
@@ -687,7 +693,7 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
                      scalar_label=scalar_label, axes=axes, legend=legend)
     from PIL import Image  # a dependency of pyvista and matplotlib
 
-    with _atomic_path(filename) as tmp:
+    with atomic_path(filename) as tmp:
         Image.fromarray(np.ascontiguousarray(img)).save(tmp, format="PNG")
     return os.fspath(filename)
 
@@ -700,7 +706,7 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
                clim=None, scalar_label=None, axes=True, legend=True):
     """The picture of :func:`render_rod` as an ``(h, w, 3)`` uint8 array."""
     pv = _pyvista()
-    points, frames = _validate_points_frames(points, frames)
+    points, frames = validate_points_frames(points, frames)
     n = points.shape[0]
     r = _radii(radius, n)
     width, height = _window_size(window_size)
@@ -748,7 +754,7 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
             entries.append(("line", stripe_color, "material line d\u2081"))
 
             if reference is not None:
-                ref_pts, ref_frames = _validate_points_frames(*reference)
+                ref_pts, ref_frames = validate_points_frames(*reference)
                 ghost = tube_mesh(ref_pts, ref_frames, _radii(r.max(), len(ref_pts)),
                                   n_around=24)
                 pl.add_mesh(ghost, color=REFERENCE_COLOR, opacity=0.3, smooth_shading=True,
@@ -1138,7 +1144,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     tubes, markers = [], []
     rmax = float(np.max(radius))
     for k, (pts, frs) in enumerate(confs):
-        pts, frs = _validate_points_frames(pts, frs)
+        pts, frs = validate_points_frames(pts, frs)
         r = _radii(radius, pts.shape[0])
         tube = tube_mesh(pts, frs, r, n_around=n_around, stripe_width=stripe_width)
         tube.point_data["stripe_coord"] = np.where(
@@ -1163,7 +1169,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
 
     statics = []
     if reference is not None:
-        ref_pts, ref_frames = _validate_points_frames(*reference)
+        ref_pts, ref_frames = validate_points_frames(*reference)
         statics.append(("ghost", tube_mesh(ref_pts, ref_frames,
                                            _radii(rmax, len(ref_pts)), n_around=24)))
     blocks, balls = _support_meshes(pv, supports, 5 * rmax)
@@ -1243,7 +1249,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     pics += [pics[-1]] * int(max(hold_last, 0))
     palette = _gif_palette(images, fixed)
     frames_p = [p.quantize(palette=palette, dither=Image.Dither.NONE) for p in pics]
-    with _atomic_path(filename) as tmp:
+    with atomic_path(filename) as tmp:
         frames_p[0].save(tmp, format="GIF", save_all=True, append_images=frames_p[1:],
                          duration=round(1000 / fps), loop=0, disposal=1)
     return os.fspath(filename)

@@ -760,23 +760,28 @@ class Result:
             return ax.plot(*(points[:, c] for c in cols), **kw)
 
         f = self.sample(per_element, step)
+        shown = set(ax.get_legend_handles_labels()[1])
+
+        def label(name):          # each legend entry once per axes
+            return "_nolegend_" if name in shown else name
+
         if reference and step not in (0, -len(self.steps)):
             draw(self.sample(per_element, 0)["r"], color=REFERENCE_COLOR, ls="--", lw=1.2,
-                 label="reference")
+                 label=label("reference"))
         kw = dict(color=ROD_COLOR, lw=2.5, label=f"load factor {self.steps[step].load_factor:.3g}")
         kw.update(kwargs)
         draw(f["r"], **kw)
         st = self.steps[step]
         sup = np.array([st.r[n] for n in self.rod.supports]).reshape(-1, 3)
         if len(sup):
-            draw(sup, ls="none", marker="s", ms=8, color="#555555", label="support")
+            draw(sup, ls="none", marker="s", ms=8, color="#555555", label=label("support"))
         if contacts:
             pts, states = self.contact_points(step), self.contact_states(step)
             if len(pts):
                 friction = st.contact.friction
                 colors = [STATE_COLORS[k] if friction else CONTACT_COLOR for k in states]
                 ax.scatter(*(pts[:, c] for c in cols), c=colors, s=18, zorder=3,
-                           label="contact")
+                           label=label("contact"))
         for c, name in zip(cols, ("xlabel", "ylabel", "zlabel")):
             getattr(ax, f"set_{name}")("xyz"[c])
         if three_d:                       # equal scales: a cube around what is drawn
