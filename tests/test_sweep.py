@@ -280,3 +280,37 @@ def test_point_whose_worker_dies_is_rerun(tmp_path, client):
     res = single(1e7, -0.1)
     np.testing.assert_allclose(ds.energy.sel({"load[0].vector[2]": -0.1}).values[
         :len(res.steps)], res.energies, rtol=1e-9)
+
+
+def test_cli_sweep_refuses_bad_input(tmp_path, capsys):
+    from skfem_rod import __main__ as cli
+    write(tmp_path, SCENE)
+    assert cli.main(["sweep", str(tmp_path / "cant.toml")]) == cli.BAD_INPUT
+    assert "no [sweep] table" in capsys.readouterr().err
+    write(tmp_path, SCENE + GRID, "grid")
+    assert cli.main(["sweep", str(tmp_path / "grid.toml"), "--workers", "0"]) == cli.BAD_INPUT
+    write(tmp_path, SCENE + '[sweep]\n"section.nu" = [0.3, 0.7]\n', "bad")
+    assert cli.main(["sweep", str(tmp_path / "bad.toml")]) == cli.BAD_INPUT
+    assert 'sweep."section.nu"[1]' in capsys.readouterr().err
+    assert not (tmp_path / "output").exists()
+
+
+def test_shipped_study_scene_is_a_zipped_sweep():
+    from skfem_rod.studies import greenhill
+    scene = load_scene(greenhill.SCENE)
+    spec = scene.data["sweep"]
+    assert spec["mode"] == "zip" and len(spec["parameters"]["load[0].vector[0]"]) == 6
+    assert scene.data["solver"]["stability"]
+
+
+@pytest.mark.slow
+def test_greenhill_study_at_small_size(tmp_path):
+    """The docs' study at its small size: the sign change of the lowest
+    eigenvalue is Greenhill's clamped-rod threshold (16 elements: 4e-3)."""
+    from skfem_rod.studies import greenhill
+    rows = greenhill.main(out=str(tmp_path), n_workers=2, small=True)
+    assert [r["T0"] for r in rows] == [0.25, 1.0, 4.0]
+    for r in rows:
+        assert 0.4 < r["load_factor"] < 0.8 and abs(r["error"]) < 1e-2, r
+    assert (tmp_path / "greenhill_sweep.png").stat().st_size > 10_000
+    assert (tmp_path / "sweep.nc").exists() and (tmp_path / "thresholds.json").exists()
