@@ -61,6 +61,8 @@ MAX_POINTS = 100_000
 POINTS_DIR, DATASET = "points", "sweep.nc"
 #: fill value of the integer step variables past a point's last step
 MISSING = -1
+#: samples of the centreline for twist, writhe and link (Result.topology)
+TOPOLOGY_SAMPLES = 2000
 
 _TOKEN = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")
 
@@ -339,8 +341,9 @@ def _step_record(result, k, sup):
     end = rod.node("end")
     torque = (float(np.dot(st.reactions[end][1], R[-1][:, 2]))
               if end in st.reactions else np.nan)
-    try:
-        t = result.topology(k)
+    try:                                  # at most ~TOPOLOGY_SAMPLES points (writhe is O(n^2))
+        t = result.topology(k, per_element=int(np.clip(
+            TOPOLOGY_SAMPLES // rod.mesh.n_elements, 1, 16)))
         topo = (t.twist, t.writhe, t.link)
     except Exception:                     # noqa: BLE001  (a figure, not the solve)
         topo = (np.nan,) * 3
@@ -576,8 +579,12 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
 
     Examples
     --------
-    >>> ds = sweep("scenes/cantilever_sweep.toml", n_workers=2)   # doctest: +SKIP
-    >>> ds.tip_position.sel(xyz="z").isel(step=-1)                 # doctest: +SKIP
+    The shipped study (6 points, about a minute and a half on 2 workers):
+
+    >>> from skfem_rod import examples
+    >>> ds = sweep(examples.path("greenhill_sweep"), n_workers=2)   # doctest: +SKIP
+    >>> ds.end_torque.isel(step=ds.n_steps - 1).values      # doctest: +SKIP
+    array([1.85, 2.2 , 2.8 , 3.8 , 5.3 , 7.4 ])
     """
     from .scene import Scene, load_scene
     if not isinstance(scene, Scene):
