@@ -88,8 +88,8 @@ def test_hairpin_mesh_numbering_is_rodmesh():
     import pathlib
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
     from bench_search import hairpin_mesh
-    mesh, r = hairpin_mesh(40.0, 12)
-    rod = Rod(hairpin(0.99, 1.98, leg=(40.0 - np.pi * 0.99) / 2), SEC, 12)
+    mesh, r = hairpin_mesh(40.0, 40)
+    rod = Rod(hairpin(0.99, 1.98, leg=(40.0 - np.pi * 0.99) / 2), SEC, 40)
     assert np.array_equal(mesh.nodes, rod.mesh.nodes)
     assert np.allclose(mesh.vertices, rod.mesh.vertices)
     assert np.abs(r - rod.r0).max() < 1e-9

@@ -1,83 +1,83 @@
 r"""Nonlocal assembler of the frictional contact work: tangential and
-rotational Coulomb self-friction (sec. 3.2, 4.2b-c, 6.1, 7.1), with the
-slip kinematics measured on the material (corrections F4, F5 of
-docs/friction.md).
+rotational Coulomb self-friction (sec. 3.2-3.3, 4.2b-c, 6.1, 7.1).
 
-The law itself (ball projection, stick/slip, exact derivatives) is in
-:mod:`.friction`; the search and the normal part in :mod:`.search` and
-:mod:`.assembly`.  This module turns a step's kinematics into slips and
-assembles the residual and the consistent (non-symmetric) tangent.
+The slips and their linearization are measured in :mod:`.slip` (exact for
+finite rotations, F6), the law (ball projection, stick/slip, exact
+derivatives) is :mod:`.friction`; this module evaluates the law on the
+slips and assembles the residual and the consistent (non-symmetric)
+tangent.
 
-Kinematics of one pair (slave point ``s`` of element ``v`` at ``xi_s``,
-master point ``s_bar`` of element ``e`` at ``xi``; subscript ``n`` = the
-last converged step, ``N_I`` the P3 shape functions)::
+Laws (F7, docs/friction.md: the paper's split of the sliding, sec. 3.2).
+With the material slip ``g`` of :mod:`.slip`, the contact frame
+``(N, t, b)`` (``t`` the slave's tangent, ``b = N x t``) and the carried
+multipliers ``L_T, L_R`` (pushed forward with the slave section's
+incremental rotation when ``push_forward``)::
 
-    u_s   = sum N_I(xi_s) (r_I - r_nI)          displacement of the slave point
-    u_m   = sum N_J(xi)   (r_J - r_nJ)          ... of the master material point
-    phi_I = log(R_I R_nI^T)                     nodal rotation increment (spatial)
-    phi_s = sum N_I(xi_s) phi_I,  phi_m = sum N_J(xi) phi_J
-    rho   = l / 2                               lever arm (= eps at zero gap)
-    g_T   = (I - N N) [u_s - u_m - rho (phi_s + phi_m) x N]     (slip, F4)
-    g_R   = phi_s - phi_m                                        (eq. 3.9, F5)
+    f_T = (1/mu_T) P_B(mu_T gamma_T f_N)[t t . (g + mu_T L_T)]        axial sliding
+    f_R = (1/mu_R) P_B(mu_R gamma_R f_N)[t ((b . g)/rho + mu_R t . L_R)]
+                                      circumferential sliding, as a rotation about t
 
-``g_T`` is the relative displacement, over the step, of the two material
-points that meet at the contact point (``r(s) - rho N`` on the slave's
-section, ``r(s_bar) + rho N`` on the master's: the midpoint of the
-centreline segment, which is the surface point ``r -+ eps N`` of each tube
-at zero gap), projected on the tangent plane: two tubes rolling on each
-other do not slip, and an infinitesimal rigid motion is no slip even at a
-penalty penetration (with the lever arm ``eps`` it would slip by ``d w``).  Both slips are Lagrangian (material points), so no
-convective term ``s_bar-dot r'`` or ``s_bar-dot theta'`` appears.
-
-Forces (:func:`.friction.friction_force`, ``f`` acts on the master, ``-f``
-on the slave)::
-
-    f_T = (1/mu_T) P_B(mu_T gamma_T f_N)[(I - N N)(a + mu_T lambda_T)],  g_T = (I - N N) a
-    f_R = (1/mu_R) P_B(mu_R gamma_R f_N)[g_R + mu_R lambda_R]
-
-(the multiplier is projected on the current tangent plane too, so that a
-carried-over friction force never acquires a normal component).
+``f_T`` is a force per unit length along ``t``, ``f_R`` a couple per unit
+length about ``t`` (``gamma_R`` a length), both acting on the master (the
+slave gets the opposite).  The couple is carried by the contact points: a
+force ``f_R / rho`` along ``b`` at the material points in contact, whose
+moment about either section's axis is ``f_R``.  The force at the contact
+point is ``F = f_T + (t . f_R / rho) b``.
 
 Virtual work (residual = internal - external, weight ``w`` of the slave)::
 
-    w f_T . [delta r(s) - delta r(s_bar) - rho (delta th_s + delta th_m) x N]
-      + w f_R . (delta th_s - delta th_m),
+    w F . [delta r(s) - delta r(s_bar) - rho (delta th_s + delta th_m) x N],
 
-with ``delta r(s_bar)`` the material variation (``xi`` held) and the
-virtual spins at a point interpolated from the nodal spins (deviation D3).
-The lever arm gives each section the couple ``-rho N x f_T``.
-
-The tangent is the exact derivative of that residual: through ``f``
-(``df/dg``, ``df/df_N`` of the law), through the normal ``N``, through the
-master coordinate ``xi`` (``Delta xi`` of eq. 6.5, guarded as in
-:mod:`.assembly`) and through the moving master shape functions.
+material variations, virtual spins interpolated from the nodal spins
+(deviation D3): each section gets the couple ``-rho N x F``.  The tangent
+is its exact derivative (through the law's ``df/dg``, ``df/df_N``, the
+kinematics of :mod:`.slip`, and the moving master shape functions).
 
 Assembly.  Each pair gives a dense 48 x 48 block over the positions and
-spins of its 8 nodes, but of low rank in the nodes: its rows and columns
-are shape-function weights (``N_s`` on the slave's nodes, ``N_m`` and
-``N'_m`` on the master's: three "modes") times 6 dofs, and the spin
-columns of node ``k`` carry ``T^-1(phi_k)``.  So the block is
-``U C U^T`` with ``U`` (8 nodes x 3 modes) and a core ``C`` of 18 x 18
-numbers per pair; every linearized quantity is computed on the reduced
-columns (3 x 18 per pair instead of 3 x 48).  The pairs of one element pair
-share their 8 nodes: the columns are expanded pair by pair (with
-``T^-1``), the rows by one matrix product per element pair, batched over
-the element pairs with the same number of pairs; the element-pair blocks
-are summed into the CSC arrays by one ``bincount`` over a cached pattern
-(kept while the element pairs in contact do not change, as in
-:mod:`.assembly`), into which the normal contact tangent can be added
-(``K_normal``) instead of a sparse sum.
+spins of its 8 nodes, of low rank in the nodes: ``U C U^T`` with ``U``
+(8 nodes x 4 modes: ``N_s``, ``N_m``, ``N'_m``, ``N'_s``) and a core ``C``
+of 24 x 24 numbers per pair (the spin columns of node ``k`` carry ``T^-1(phi_k)``).
+The pairs of one element pair share their 8 nodes: the columns are expanded
+pair by pair, the rows by one matrix product per element pair, batched over
+the element pairs with the same number of pairs; the blocks are summed into
+CSC arrays by one ``bincount`` over a cached pattern (kept while the element
+pairs in contact do not change, as in :mod:`.assembly`), into which the
+normal contact tangent can be added (``K_normal``) instead of a sparse sum.
 """
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..element import shape_functions
-from ..rotations import hat, logm, tangent_inv
+from ..rotations import hat, tangent_inv
 from . import friction as law
 from .law import gap, normal_force
 from .assembly import cached_pattern
+from .slip import NC, NM, pulled_back, pushed, slip_kinematics
+
+
+@dataclass(frozen=True)
+class FrictionParams:
+    """Coefficients and compliances of the two friction laws.
+
+    gamma_T : tangential (axial) Coulomb coefficient, dimensionless.
+    gamma_R : rotational (circumferential) coefficient, a length:
+        ``|f_R| <= gamma_R f_N``.
+    mu_T, mu_R : compliances (eq. 4.2b-c; increments, not rates).
+    push_forward : the carried multipliers ``lam_T``, ``lam_R`` are
+        expressed at the last converged state and are pushed forward with
+        the slave section's incremental rotation (objective for rotations
+        of any size over the step); store :attr:`FrictionOutput.multiplier_T`
+        / ``multiplier_R`` as the Uzawa update inside a step and
+        ``force_T`` / ``force_R`` when the step is accepted.  False: the
+        multipliers are used as given (the update is then ``force_*``).
+    """
+    gamma_T: float = 0.0
+    gamma_R: float = 0.0
+    mu_T: float = 1.0
+    mu_R: float = 1.0
+    push_forward: bool = False
 
 
 @dataclass
@@ -85,41 +85,157 @@ class FrictionOutput:
     """Per active pair (``f_N > 0``) friction figures of one evaluation."""
     index: np.ndarray        # (m,) index into the Pairs of the evaluation
     slave: np.ndarray        # (m,) global slave point index
-    slip_T: np.ndarray       # (m, 3) tangential slip increment g_T
-    slip_R: np.ndarray       # (m, 3) rotational slip increment g_R
+    slip_T: np.ndarray       # (m, 3) axial slip increment t (t . g)
+    slip_R: np.ndarray       # (m, 3) circumferential slip as a rotation t (b . g) / rho
     force_T: np.ndarray      # (m, 3) f_T (on the master)
-    force_R: np.ndarray      # (m, 3) f_R (on the master)
+    force_R: np.ndarray      # (m, 3) f_R (couple on the master)
     state_T: np.ndarray      # (m,) FrictionState
     state_R: np.ndarray      # (m,) FrictionState
     fN: np.ndarray           # (m,) normal force
+    multiplier_T: np.ndarray = None   # (m, 3) Uzawa update at the last converged state
+    multiplier_R: np.ndarray = None   # (m, 3)
+    axis: np.ndarray = None           # (m, 3) t, the master tangent
 
 
-# Reduced operators.  Every linearized quantity of a pair (a row of its
-# tangent) is a combination of the nodal variations of its 8 nodes with
-# shape-function weights of three kinds ("modes"): N_s on the slave's
-# nodes, N_m and N'_m (the moving master point) on the master's.  It is
-# kept as a (3, 18) matrix: column ``3 c + beta`` for the dof ``c`` (0-2
-# position, 3-5 spin) and the mode ``beta`` (0: N_s, 1: N_m, 2: N'_m).  The
-# spins enter through ``T^-1(phi_k) delta w_k``, node by node: that factor
-# is applied when the columns are expanded to the nodes.
-_S, _M, _D = 0, 1, 2
+class _Forces(NamedTuple):
+    F: np.ndarray            # (m, 3) force at the contact point (on the master)
+    fT: np.ndarray
+    fR: np.ndarray
+    resT: law.FrictionResult
+    resR: law.FrictionResult
+    DF: np.ndarray           # (m, 3, NC) or None
 
 
-def _mode(*parts):
-    op = np.zeros((3, 18))
-    for beta, dof, sign in parts:
-        op[np.arange(3), 3 * (dof + np.arange(3)) + beta] = sign
-    return op
+def _outer(a, c):
+    return a[:, :, None] * c[:, None, :]
 
 
-_XREL = _mode((_S, 0, 1.0), (_M, 0, -1.0))    # delta(x - y), xi held
-_PHIS = _mode((_S, 3, 1.0))                   # spin variation at the slave point
-_PHIM = _mode((_M, 3, 1.0))                   # ... at the master point, xi held
+def _forces(kin, lam_T, lam_R, fN, dfN, p, linearize):
+    """The two laws on the split slip (F7) and the force ``F`` at the
+    contact point, with its reduced linearization ``DF``."""
+    if p.push_forward:
+        LT, DLT = pushed(kin, lam_T, linearize)
+        LR, DLR = pushed(kin, lam_R, linearize)
+    else:
+        LT, LR, DLT, DLR = lam_T, lam_R, 0.0, 0.0
+    t, b, g, rho = kin.t, kin.b, kin.g, kin.rho
+    vT = g + p.mu_T * LT
+    AT = kin.axial(vT)
+    bg = np.sum(b * g, axis=1)
+    cR = bg / rho + p.mu_R * np.sum(t * LR, axis=1)
+    zero = np.zeros_like(AT)
+    resT = law.friction_force(AT, zero, p.mu_T, p.gamma_T, fN)
+    resR = law.friction_force(t * cR[:, None], zero, p.mu_R, p.gamma_R, fN)
+    fT, fR = resT.force, resR.force
+    fRs = np.sum(t * fR, axis=1)
+    F = fT + (fRs / rho)[:, None] * b
+    if not linearize:
+        return _Forces(F, fT, fR, resT, resR, None)
+    DfN = -dfN[:, None] * kin.NX
+    Drho = kin.Drho
+    DvT = kin.Dg + p.mu_T * DLT
+    DAT = (np.sum(t * vT, axis=1)[:, None, None] * kin.Dt
+           + _outer(t, np.einsum("mc,mcj->mj", vT, kin.Dt) + np.einsum("mc,mcj->mj", t, DvT)))
+    DfT = resT.dforce_dslip @ DAT + _outer(resT.dforce_dnormal, DfN)
+    DcR = ((np.einsum("mc,mcj->mj", g, kin.Db) + np.einsum("mc,mcj->mj", b, kin.Dg)) / rho[:, None]
+           - (bg / rho ** 2)[:, None] * Drho
+           + p.mu_R * (np.einsum("mc,mcj->mj", LR, kin.Dt)
+                       + (np.einsum("mc,mcj->mj", t, DLR) if p.push_forward else 0.0)))
+    DAR = cR[:, None, None] * kin.Dt + _outer(t, DcR)
+    DfR = resR.dforce_dslip @ DAR + _outer(resR.dforce_dnormal, DfN)
+    DfRs = np.einsum("mc,mcj->mj", fR, kin.Dt) + np.einsum("mc,mcj->mj", t, DfR)
+    DF = (DfT + _outer(b, DfRs / rho[:, None] - (fRs / rho ** 2)[:, None] * Drho)
+          + (fRs / rho)[:, None, None] * kin.Db)
+    return _Forces(F, fT, fR, resT, resR, DF)
 
 
-def _mm(A, B):
-    """Batched ``A @ B``."""
-    return np.matmul(A, B)
+def _residual(n, kin, w, F):
+    """``w F . [delta x - delta y - rho (delta th_s + delta th_m) x N]``:
+    on the slave nodes ``N_s (F; -rho q)``, on the master's
+    ``N_m (-F; -rho q)``, ``q = N x F``."""
+    m = w.size
+    wF = w[:, None] * F
+    wq = (w * kin.rho)[:, None] * np.cross(kin.N, F)
+    loc = np.empty((m, 8, 6))
+    loc[:, :4, :3] = kin.Ns[:, :, None] * wF[:, None, :]
+    loc[:, 4:, :3] = kin.Nm[:, :, None] * (-wF)[:, None, :]
+    loc[:, :4, 3:] = kin.Ns[:, :, None] * (-wq)[:, None, :]
+    loc[:, 4:, 3:] = kin.Nm[:, :, None] * (-wq)[:, None, :]
+    dofs = 6 * kin.nodes[:, :, None] + np.arange(6)
+    return np.bincount(dofs.ravel(), weights=loc.ravel(), minlength=n)
+
+
+def _core(kin, w, F, DF):
+    """The reduced core ``C`` ``(m, row mode, row dof, NC)`` of the tangent:
+    ``w [Vx^T DF - rho Vl^T Dq - (Vl^T q) Drho^T]`` plus the moving master
+    shape functions (row mode ``N'_m`` times ``Delta xi``)."""
+    m = w.size
+    q = np.cross(kin.N, F)
+    Dq = hat(kin.N) @ DF - hat(F) @ kin.DN
+    wc = w[:, None, None]
+    E1 = wc * DF
+    E2 = -wc * (kin.rho[:, None, None] * Dq + _outer(q, kin.Drho))
+    C = np.zeros((m, NM, 6, NC))       # no row has the mode N'_s
+    C[:, 0, :3] = E1
+    C[:, 1, :3] = -E1
+    C[:, 0, 3:] = E2
+    C[:, 1, 3:] = E2
+    C[:, 2, :3] = -_outer(w[:, None] * F, kin.Xi)
+    C[:, 2, 3:] = -_outer((w * kin.rho)[:, None] * q, kin.Xi)
+    return C
+
+
+def _expand(mesh, kin, ve, me, C, K_normal):
+    """The pairs' blocks ``U C U^T`` summed into a CSC matrix (see the
+    module docstring); ``K_normal`` added into its arrays."""
+    n = mesh.n_dofs
+    m = ve.size
+    nodes = kin.nodes
+    ne = mesh.nodes.shape[0]
+    hs = (ve > me).astype(np.intp)                  # half of the slave's nodes
+    U = np.zeros((m, 2, 4, NM))
+    ar = np.arange(m)
+    U[ar, hs, :, 0] = kin.Ns
+    U[ar, 1 - hs, :, 1] = kin.Nm
+    U[ar, 1 - hs, :, 2] = kin.dNm
+    U[ar, hs, :, 3] = kin.dNs
+    U = U.reshape(m, 8, NM)
+    key = np.minimum(ve, me) * ne + np.maximum(ve, me)
+    _, inv, count = np.unique(key, return_inverse=True, return_counts=True)
+    order = np.lexsort((key, count[inv]))          # by pair count, then element pair
+    U = U[order]
+    C = C[order].reshape(m, NM, 6, 6, NM).transpose(0, 1, 4, 3, 2)   # (p, alpha, beta, c, a)
+    Yp = np.matmul(U[:, None], C[:, :, :, :3].reshape(m, NM, NM, 18))  # (p, alpha, J, (c, a))
+    Tn = tangent_inv(kin.phi)[np.where(hs[order, None],
+                                       nodes[order][:, [4, 5, 6, 7, 0, 1, 2, 3]],
+                                       nodes[order])]               # (p, J, c', c)
+    W = (U[:, :, None, :, None]
+         * np.swapaxes(Tn, 2, 3)[:, :, :, None, :]).reshape(m, 24, 3 * NM)
+    Yw = np.matmul(W[:, None], C[:, :, :, 3:].reshape(m, NM, 3 * NM, 6))  # (p, alpha, (J, c), a)
+    ge = key[order][np.r_[True, key[order][1:] != key[order][:-1]]]
+    ng = ge.size
+    vals = np.empty((2, ng, 144, 8))               # (pos/spin, g, (J, c, a), I)
+    lo = g0 = 0
+    for k in np.unique(count):
+        g = int(np.count_nonzero(count == k))
+        hi = lo + k * g
+        Uk = U[lo:hi].reshape(g, k, 8, NM).transpose(0, 1, 3, 2).reshape(g, NM * k, 8)
+        for part, Yk in enumerate((Yp, Yw)):
+            np.matmul(Yk[lo:hi].reshape(g, NM * k, 144).transpose(0, 2, 1), Uk,
+                      out=vals[part, g0:g0 + g])                    # (g, (J, c, a), I)
+        lo, g0 = hi, g0 + g
+    gnodes = np.concatenate([mesh.nodes[ge // ne], mesh.nodes[ge % ne]], axis=1)
+    nnz, pos, indices, indptr = _pattern(mesh, ge, gnodes)
+    data = np.bincount(pos, weights=vals.ravel(), minlength=nnz)
+    K = sp.csc_matrix((data, indices, indptr), shape=(n, n))
+    if K_normal is not None:
+        K_normal = sp.csc_matrix(K_normal)
+        where = _normal_positions(K_normal, indices, indptr, n)
+        if where is None:
+            K = (K + K_normal).tocsc()
+        else:
+            data[where] += K_normal.data
+    return K
 
 
 _PATTERN_CACHE = {}
@@ -185,7 +301,8 @@ def _normal_positions(K_normal, indices, indptr, n):
 
 
 def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R,
-                  gamma_T, gamma_R, mu_T, mu_R, tangent=True, K_normal=None):
+                  gamma_T=0.0, gamma_R=0.0, mu_T=1.0, mu_R=1.0, tangent=True, K_normal=None,
+                  *, params=None):
     """Residual ``(n_dofs,)``, tangent (CSC or None) and :class:`FrictionOutput`
     of the frictional contact work of ``pairs`` (from :func:`.search.search`
     at ``r``).
@@ -193,170 +310,37 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     ``r, R`` current nodal state; ``r_n, R_n`` the last converged one;
     ``lam_N`` ``(n_slaves,)``, ``lam_T``, ``lam_R`` ``(n_slaves, 3)``: the
     multipliers; ``mu_*`` the compliances, ``gamma_*`` the coefficients
-    (``gamma_R`` a length).  Pairs with ``f_N = 0`` carry no friction.
-    ``K_normal`` (optional, CSC): a matrix added to the returned tangent,
-    the normal contact tangent of the same pairs (from
-    :func:`.assembly.contact_work`): its entries are added into the
-    friction tangent's arrays, which hold its pattern, instead of a sparse
-    sum.
+    (``gamma_R`` a length), or all of them as ``params``
+    (:class:`FrictionParams`, which also selects ``push_forward``).  Pairs
+    with ``f_N = 0`` carry no friction.  ``K_normal`` (optional, CSC): a
+    matrix added to the returned tangent, the normal contact tangent of the
+    same pairs (from :func:`.assembly.contact_work`): its entries are added
+    into the friction tangent's arrays, which hold its pattern.
     """
+    p = params if params is not None else FrictionParams(gamma_T, gamma_R, mu_T, mu_R)
     n = mesh.n_dofs
     if K_normal is not None and K_normal.shape != (n, n):
         raise ValueError(f"K_normal must be an ({n}, {n}) matrix, got shape {K_normal.shape}")
-    d = gap(pairs.distance, radius)
-    fN_all, dfN_all = normal_force(d, lam_N[pairs.slave], mu_N)
+    fN_all, dfN_all = normal_force(gap(pairs.distance, radius), lam_N[pairs.slave], mu_N)
     idx = np.flatnonzero(fN_all > 0)
-    m = idx.size
-    if m == 0:
+    if idx.size == 0:
         z = np.zeros((0, 3))
-        out = FrictionOutput(idx, idx, z, z, z, z, np.zeros(0, int), np.zeros(0, int), np.zeros(0))
+        out = FrictionOutput(idx, idx, z, z, z, z, np.zeros(0, int), np.zeros(0, int),
+                             np.zeros(0), z, z, z)
         if not tangent:
             return np.zeros(n), None, out
         return np.zeros(n), (sp.csc_matrix((n, n)) if K_normal is None else K_normal), out
-    sl, ve, xs, me, xm = (pairs.slave[idx], pairs.s_elem[idx], pairs.s_xi[idx],
-                          pairs.m_elem[idx], pairs.m_xi[idx])
-    w, l, Nv = pairs.weight[idx], pairs.distance[idx], pairs.normal[idx]
-    fN, dfN = fN_all[idx], dfN_all[idx]
-
-    nodes = np.concatenate([mesh.nodes[ve], mesh.nodes[me]], axis=1)      # (m, 8)
-    Ns = shape_functions(xs)[0].T                                        # (m, 4)
-    Nm, dNm, d2Nm = (a.T for a in shape_functions(xm))
-
-    # nodal increments of the step
-    du = r - r_n                                                         # (nn, 3)
-    phi = logm(R @ np.swapaxes(R_n, 1, 2))                               # (nn, 3)
-    rm, dum, phim_n = r[mesh.nodes[me]], du[mesh.nodes[me]], phi[mesh.nodes[me]]
-    y1 = np.einsum("mk,mkc->mc", dNm, rm)
-    y2 = np.einsum("mk,mkc->mc", d2Nm, rm)
-    u_s = np.einsum("mk,mkc->mc", Ns, du[mesh.nodes[ve]])
-    u_m = np.einsum("mk,mkc->mc", Nm, dum)
-    u_m1 = np.einsum("mk,mkc->mc", dNm, dum)
-    phi_s = np.einsum("mk,mkc->mc", Ns, phi[mesh.nodes[ve]])
-    phi_m = np.einsum("mk,mkc->mc", Nm, phim_n)
-    phi_m1 = np.einsum("mk,mkc->mc", dNm, phim_n)
-
-    P = np.eye(3) - Nv[:, :, None] * Nv[:, None, :]
-    phi_sum = phi_s + phi_m
-    rho = 0.5 * l                      # lever arm: centreline -> contact point
-    Nxphi = np.cross(Nv, phi_sum)
-    a_raw = u_s - u_m + rho[:, None] * Nxphi
-    b = a_raw + mu_T * lam_T[sl]
-    g_aug = np.einsum("mab,mb->ma", P, b)
-    g_T = np.einsum("mab,mb->ma", P, a_raw)
-    g_R = phi_s - phi_m
-
-    resT = law.friction_force(g_aug, np.zeros_like(g_aug), mu_T, gamma_T, fN)
-    resR = law.friction_force(g_R, lam_R[sl], mu_R, gamma_R, fN)
-    fT, fR = resT.force, resR.force
-    q = np.cross(Nv, fT)
-
-    # residual: w [Vx^T f_T + Vw^T f_R - rho Vl^T (N x f_T)]: on the slave
-    # nodes N_s (f_T; f_R - rho q), on the master nodes -N_m (f_T; f_R + rho q)
-    wv = w[:, None]
-    loc = np.empty((m, 8, 6))
-    loc[:, :4, :3] = Ns[:, :, None] * (wv * fT)[:, None, :]
-    loc[:, 4:, :3] = Nm[:, :, None] * (-wv * fT)[:, None, :]
-    loc[:, :4, 3:] = Ns[:, :, None] * (wv * (fR - rho[:, None] * q))[:, None, :]
-    loc[:, 4:, 3:] = Nm[:, :, None] * (-wv * (fR + rho[:, None] * q))[:, None, :]
-    dofs = 6 * nodes[:, :, None] + np.arange(6)
-    force = np.bincount(dofs.ravel(), weights=loc.ravel(), minlength=n)
-    out = FrictionOutput(idx, sl, g_T, g_R, fT, fR, resT.state, resR.state, fN)
+    sl, w, fN, dfN = pairs.slave[idx], pairs.weight[idx], fN_all[idx], dfN_all[idx]
+    kin = slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, tangent)
+    fo = _forces(kin, lam_T[sl], lam_R[sl], fN, dfN, p, tangent)
+    force = _residual(n, kin, w, fo.F)
+    back = (lambda f: pulled_back(kin, f)) if p.push_forward else (lambda f: f)
+    out = FrictionOutput(idx, sl, kin.axial(kin.g), kin.t * (np.sum(kin.b * kin.g, axis=1)
+                                                          / kin.rho)[:, None],
+                         fo.fT, fo.fR, fo.resT.state, fo.resR.state, fN,
+                         back(fo.fT), back(fo.fR), kin.t)
     if not tangent:
         return force, None, out
-
-    # linearized primitives on the reduced columns: (m, 3, 18) / (m, 18)
-    xy = Nv * l[:, None]
-    den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
-    use = pairs.interior[idx] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
-    Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
-    Xi = np.zeros((m, 6, 3))                        # Delta xi (eq. 6.5)
-    Xi[:, :3, _S] = Om[:, None] * y1
-    Xi[:, :3, _M] = -Xi[:, :3, _S]
-    Xi[:, :3, _D] = Om[:, None] * xy
-    Xi = Xi.reshape(m, 18)
-    DN = _mm(P, _XREL - y1[:, :, None] * Xi[:, None, :]) / l[:, None, None]
-    NX = Nv @ _XREL                                 # N . delta(x - y)
-    DfN = -dfN[:, None] * NX
-    Phim = _PHIM + phi_m1[:, :, None] * Xi[:, None, :]
-    Drho = 0.5 * NX                                 # y' . N = 0
-    Nh = hat(Nv)
-    Da = (_XREL - u_m1[:, :, None] * Xi[:, None, :]
-          + rho[:, None, None] * _mm(Nh, _PHIS + Phim)
-          - rho[:, None, None] * _mm(hat(phi_sum), DN)
-          + Nxphi[:, :, None] * Drho[:, None, :])
-    nb = np.sum(Nv * b, axis=1)
-    Dg = (-nb[:, None, None] * DN - Nv[:, :, None] * np.einsum("mc,mcj->mj", b, DN)[:, None, :]
-          + _mm(P, Da))
-    DfT = (_mm(resT.dforce_dslip, Dg)
-           + resT.dforce_dnormal[:, :, None] * DfN[:, None, :])
-    Dq = _mm(Nh, DfT) - _mm(hat(fT), DN)
-
-    # K_e = w [Vx^T DfT + Vw^T DfR - rho Vl^T Dq - (Vl^T q) Drho^T + moving Xi^T]:
-    # rows by mode too (N_s, N_m, N'_m: the master shape functions move with
-    # xi); C (m, row mode alpha, row dof a, reduced column (c, beta))
-    wc = w[:, None, None]
-    E1 = wc * DfT
-    E2 = -wc * (rho[:, None, None] * Dq + q[:, :, None] * Drho[:, None, :])
-    C = np.empty((m, 3, 6, 18))
-    C[:, 0, :3] = E1
-    C[:, 1, :3] = -E1
-    C[:, 0, 3:] = E2
-    C[:, 1, 3:] = E2
-    if gamma_R > 0:                                 # rotational friction
-        E3 = wc * (_mm(resR.dforce_dslip, _PHIS - Phim)
-                   + resR.dforce_dnormal[:, :, None] * DfN[:, None, :])
-        C[:, 0, 3:] += E3
-        C[:, 1, 3:] -= E3
-    C[:, 2, :3] = -(wv * fT)[:, :, None] * Xi[:, None, :]
-    C[:, 2, 3:] = -(wv * (fR + rho[:, None] * q))[:, :, None] * Xi[:, None, :]
-
-    # the pairs of one element pair {v, e} share their 8 nodes, ordered
-    # (lower element, higher element); U (m, 8, 3): the weight of each mode
-    # at each of these nodes.  The block of a pair is
-    # K[(I a), (J c)] = sum U[I, alpha] C[alpha, a, c, beta] U[J, beta]
-    # (spin columns: times T^-1 of node J): columns expanded pair by pair
-    # (Y, 864 numbers a pair), rows summed over the pairs of an element pair
-    # by one product per element pair, element pairs with the same number of
-    # pairs batched together
-    ne = mesh.nodes.shape[0]
-    hs = (ve > me).astype(np.intp)                  # half of the slave's nodes
-    U = np.zeros((m, 2, 4, 3))
-    ar = np.arange(m)
-    U[ar, hs, :, _S] = Ns
-    U[ar, 1 - hs, :, _M] = Nm
-    U[ar, 1 - hs, :, _D] = dNm
-    U = U.reshape(m, 8, 3)
-    key = np.minimum(ve, me) * ne + np.maximum(ve, me)
-    _, inv, count = np.unique(key, return_inverse=True, return_counts=True)
-    order = np.lexsort((key, count[inv]))          # by pair count, then element pair
-    U = U[order]
-    C = C[order].reshape(m, 3, 6, 6, 3).transpose(0, 1, 4, 3, 2)     # (p, alpha, beta, c, a)
-    Yp = _mm(U[:, None], C[:, :, :, :3].reshape(m, 3, 3, 18))       # (p, alpha, J, (c, a))
-    Tn = tangent_inv(phi)[np.where(hs[order, None], nodes[order][:, [4, 5, 6, 7, 0, 1, 2, 3]],
-                                   nodes[order])]                   # (p, J, c', c)
-    W = (U[:, :, None, :, None] * np.swapaxes(Tn, 2, 3)[:, :, :, None, :]).reshape(m, 24, 9)
-    Yw = _mm(W[:, None], C[:, :, :, 3:].reshape(m, 3, 9, 6))         # (p, alpha, (J, c), a)
-    ge = key[order][np.r_[True, key[order][1:] != key[order][:-1]]]
-    ng = ge.size
-    vals = np.empty((2, ng, 144, 8))               # (pos/spin, g, (J, c, a), I)
-    lo = g0 = 0
-    for k in np.unique(count):
-        g = int(np.count_nonzero(count == k))
-        hi = lo + k * g
-        Uk = U[lo:hi].reshape(g, k, 8, 3).transpose(0, 1, 3, 2).reshape(g, 3 * k, 8)
-        for part, Yk in enumerate((Yp, Yw)):
-            np.matmul(Yk[lo:hi].reshape(g, 3 * k, 144).transpose(0, 2, 1), Uk,
-                      out=vals[part, g0:g0 + g])                    # (g, (J, c, a), I)
-        lo, g0 = hi, g0 + g
-    gnodes = np.concatenate([mesh.nodes[ge // ne], mesh.nodes[ge % ne]], axis=1)
-    nnz, pos, indices, indptr = _pattern(mesh, ge, gnodes)
-    data = np.bincount(pos, weights=vals.ravel(), minlength=nnz)
-    K = sp.csc_matrix((data, indices, indptr), shape=(n, n))
-    if K_normal is not None:
-        K_normal = sp.csc_matrix(K_normal)
-        where = _normal_positions(K_normal, indices, indptr, n)
-        if where is None:
-            K = (K + K_normal).tocsc()
-        else:
-            data[where] += K_normal.data
+    C = _core(kin, w, fo.F, fo.DF)
+    K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal)
     return force, K, out

@@ -1,0 +1,169 @@
+"""Friction slips exact for finite rotations and the rotational law on the
+circumferential sliding (skfem_rod.contact.slip, friction_assembly;
+docs/friction.md F6, F7): a rigid step of 0.5 rad gives zero slip, the same
+stick/slip states and rotated forces; the tangent with pushed-forward
+multipliers and large step rotations matches finite differences; gamma_R
+gives no couple against relative bending, and twist is resisted by
+gamma_R f_N whether or not tangential friction is on."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod
+from skfem_rod.contact import friction as law
+from skfem_rod.contact.friction_assembly import FrictionParams, friction_work
+from skfem_rod.contact.search import search, slave_points
+from skfem_rod.rotations import expm
+
+from test_contact import SEC, hairpin
+from test_friction_assembly import EPS, _setup
+
+
+def _work(rod, r, R, r_n, R_n, sl, lams, p, mu_N=1e-3, tangent=True):
+    pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+    lam_N, lam_T, lam_R = lams
+    return friction_work(rod.mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, EPS, lam_T, lam_R,
+                         tangent=tangent, params=p)
+
+
+def _unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rigid_step_of_half_a_radian(seed):
+    """From a deformed contact state with carried multipliers (some inside
+    their Coulomb ball: stick, some beyond: slip), a rigid rotation by 0.5
+    rad plus a translation over the step: slips zero to round-off, the same
+    states and normal forces, friction forces and couples rotated with the
+    motion; the multipliers' update pulled back to the last converged state
+    is the force of the step without motion."""
+    rng, rod, r, R, r_n, R_n, sl, lam_N, lam_T, lam_R = _setup(seed)
+    lam_T = 3.0 * rng.normal(size=lam_T.shape)     # the balls: gamma f_N ~ 3 and 0.1
+    lam_R = 0.1 * rng.normal(size=lam_R.shape)
+    p = FrictionParams(gamma_T=0.3, gamma_R=0.01, mu_T=1e-3, mu_R=1e-3, push_forward=True)
+    lams = (lam_N, lam_T, lam_R)
+    f0, K0, o0 = _work(rod, r_n, R_n, r_n, R_n, sl, lams, p)
+    assert np.abs(o0.slip_T).max() == 0 and np.abs(o0.slip_R).max() == 0
+    for st in (o0.state_T, o0.state_R):
+        assert (st == law.STICK).sum() >= 5 and (st == law.SLIP).sum() >= 5
+    Q = expm(0.5 * _unit(rng.normal(size=3)))
+    c = rng.normal(size=3)
+    f1, K1, o1 = _work(rod, r_n @ Q.T + c, Q @ R_n, r_n, R_n, sl, lams, p)
+    assert np.array_equal(o1.slave, o0.slave)
+    assert np.abs(o1.slip_T).max() < 1e-14 and np.abs(o1.slip_R).max() < 1e-12
+    assert np.array_equal(o1.state_T, o0.state_T) and np.array_equal(o1.state_R, o0.state_R)
+    np.testing.assert_allclose(o1.fN, o0.fN, rtol=1e-10)
+    scale_T, scale_R = np.abs(o0.force_T).max(), np.abs(o0.force_R).max()
+    assert np.abs(o1.force_T - o0.force_T @ Q.T).max() < 1e-10 * scale_T
+    assert np.abs(o1.force_R - o0.force_R @ Q.T).max() < 1e-10 * scale_R
+    assert np.abs(o1.multiplier_T - o0.force_T).max() < 1e-10 * scale_T
+    # the residual is the rotated one: forces and couples rotate with Q
+    g0, g1 = f0.reshape(-1, 6), f1.reshape(-1, 6)
+    assert np.abs(g1[:, :3] - g0[:, :3] @ Q.T).max() < 1e-9 * np.abs(g0).max()
+    assert np.abs(g1[:, 3:] - g0[:, 3:] @ Q.T).max() < 1e-9 * np.abs(g0).max()
+    # without the push-forward the carried forces do not turn: the same
+    # step is read as slip where the points stick
+    q = FrictionParams(gamma_T=0.3, gamma_R=0.01, mu_T=1e-3, mu_R=1e-3, push_forward=False)
+    o2 = _work(rod, r_n @ Q.T + c, Q @ R_n, r_n, R_n, sl, lams, q, tangent=False)[2]
+    assert np.abs(o2.force_T - o0.force_T @ Q.T).max() > 0.1 * scale_T
+
+
+@pytest.mark.parametrize("push", [True, False])
+@pytest.mark.parametrize("regime", ["slip", "stick"])
+@pytest.mark.parametrize("seed", [3, 4])
+def test_tangent_with_large_step_rotations(seed, regime, push):
+    """Sections turned by up to 0.5 rad over the step (not small): the
+    tangent is the exact derivative of the residual (central differences)."""
+    rng, rod, r, R, r_n, R_n, sl, lam_N, lam_T, lam_R = _setup(seed)
+    R = expm(0.5 * _unit(rng.normal(size=3)) + 0.05 * rng.normal(size=(len(R), 3))) @ R_n
+    p = (FrictionParams(0.1, 0.003, 1e-3, 1e-3, push) if regime == "slip"
+         else FrictionParams(5.0, 2.0, 1e-1, 1e-1, push))
+    lams = (lam_N, lam_T, lam_R)
+    f, K, out = _work(rod, r, R, r_n, R_n, sl, lams, p)
+    want = law.SLIP if regime == "slip" else law.STICK
+    assert out.index.size > 20
+    assert (out.state_T == want).mean() > 0.5 and (out.state_R == want).mean() > 0.5
+    d = rng.normal(size=rod.mesh.n_dofs)
+    d.reshape(-1, 6)[:, 3:] *= 0.3
+
+    def shifted(t):
+        dd = t * d.reshape(-1, 6)
+        return r + dd[:, :3], expm(dd[:, 3:]) @ R
+
+    h = 1e-7
+    fd = (_work(rod, *shifted(h), r_n, R_n, sl, lams, p, tangent=False)[0]
+          - _work(rod, *shifted(-h), r_n, R_n, sl, lams, p, tangent=False)[0]) / (2 * h)
+    assert np.abs(fd - K @ d).max() <= 1e-6 * np.abs(fd).max()
+
+
+def _legs(n=24):
+    """The hairpin of the contact tests (legs along x, 0.2 apart, contact
+    radius 0.105: pressed by 0.01) and the nodes of the upper leg beyond
+    x = 0.3 (its sections are turned; near the bend N is not y)."""
+    rod = Rod(hairpin(EPS, 0.2, leg=1.0), SEC, n)
+    s = rod.mesh.s_nodes
+    upper = s > 1.0 + np.pi * 0.1 + 0.3 - 1e-12
+    return rod, upper
+
+
+def _twist(rod, upper, axis, angle):
+    R = rod.R0.copy()
+    R[upper] = expm(angle * np.asarray(axis, float)) @ rod.R0[upper]
+    return R
+
+
+@pytest.mark.parametrize("axis", [[0, 0, 1.0], [0, 1.0, 0]])
+def test_gamma_R_gives_no_couple_against_relative_bending(axis):
+    """The upper leg's sections turned about z (relative bending in the
+    plane of the legs) or about the normal y, centrelines held: with
+    gamma_R alone no friction at all (the sliding it causes is axial, or
+    none); the old law on the whole relative rotation gave couples of
+    about gamma_R f_N."""
+    rod, upper = _legs()
+    sl = slave_points(rod.mesh, 3)
+    ns = sl.s.size
+    lams = (0.05 * np.ones(ns), np.zeros((ns, 3)), np.zeros((ns, 3)))
+    R = _twist(rod, upper, axis, 0.05)
+    p = FrictionParams(gamma_T=0.0, gamma_R=EPS, mu_T=1e-3, mu_R=1e-3 / EPS**2)
+    f, K, out = _work(rod, rod.r0, R, rod.r0, rod.R0, sl, lams, p)
+    assert out.index.size > 20 and out.fN.min() > 0
+    assert np.abs(out.force_R).max() < 1e-12 * EPS * out.fN.max()
+    assert np.abs(out.slip_R).max() < 1e-12
+    assert np.abs(f).max() < 1e-12 * out.fN.max()
+    # while the full relative rotation (the earlier g_R) is 0.05 rad there
+
+
+def test_twist_is_resisted_by_gamma_R_fN_only():
+    """The upper leg's sections twisted about the legs' axis x by 0.05 rad
+    (its centreline held), well past the stick range: every pair between
+    the legs slips rotationally with |f_R| = gamma_R f_N and no axial force,
+    the twisting couple on the upper leg is sum w gamma_R f_N, and it is
+    the same with tangential friction on (gamma_T = 0.3): twist is not
+    counted twice (the earlier slips gave (gamma_R + eps gamma_T) f_N)."""
+    rod, upper = _legs()
+    sl = slave_points(rod.mesh, 3)
+    ns = sl.s.size
+    lams = (0.05 * np.ones(ns), np.zeros((ns, 3)), np.zeros((ns, 3)))
+    R = _twist(rod, upper, [1.0, 0, 0], 0.05)
+    res = {}
+    for gamma_T in (0.0, 0.3):
+        p = FrictionParams(gamma_T=gamma_T, gamma_R=EPS, mu_T=1e-4, mu_R=1e-4 / EPS**2)
+        f, K, out = _work(rod, rod.r0, R, rod.r0, rod.R0, sl, lams, p)
+        res[gamma_T] = f, out
+    (f0, o0), (f1, o1) = res[0.0], res[0.3]
+    np.testing.assert_allclose(f1, f0, rtol=0, atol=1e-12 * np.abs(f0).max())
+    assert np.abs(o1.force_T).max() < 1e-12 * o1.fN.max()
+    # pairs whose two sections turned relative to each other by the full
+    # 0.05 rad: rotational slip 0.05 rad about x, saturated
+    full = np.abs(np.linalg.norm(o0.slip_R, axis=1) - 0.05) < 1e-3
+    assert full.sum() > 10
+    assert np.all(o0.state_R[full] == law.SLIP)
+    np.testing.assert_allclose(np.abs(o0.force_R[full, 0]), EPS * o0.fN[full], rtol=1e-12)
+    # the couple about x that each pair puts on both sections: gamma_R f_N
+    # (the force f_R / rho along b at the contact point, lever arm rho)
+    pairs = search(rod.mesh, rod.r0, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+    w = pairs.weight[o0.index]
+    Mx = f0.reshape(-1, 6)[:, 3].sum()
+    assert Mx == pytest.approx(2 * np.sum(w * o0.force_R[:, 0]), rel=1e-10)
+    assert abs(Mx) > 0.9 * 2 * np.sum(w[full] * EPS * o0.fN[full])
