@@ -1,6 +1,7 @@
 """Self-contact: search (:mod:`.search`), normal law (:mod:`.law`), the
 nonlocal assembler (:mod:`.assembly`), and Coulomb self-friction: the law
-(:mod:`.friction`) and its assembler (:mod:`.friction_assembly`).  :class:`ContactOptions` holds the
+(:mod:`.friction`), the slip kinematics (:mod:`.slip`) and the assembler
+(:mod:`.friction_assembly`).  :class:`ContactOptions` holds the
 parameters; ``Rod.enable_contact`` switches contact on (off by default, and
 then no contact code runs)."""
 from dataclasses import dataclass
@@ -27,9 +28,10 @@ class ContactOptions:
         ``tolerance * eps`` (default 1e-3).
     max_uzawa : largest number of Uzawa updates per load step.
     margin : extra search reach beyond ``2 eps`` (default ``eps``).
-    gamma_T : tangential Coulomb coefficient (dimensionless, eq. 3.10a-b);
-        default 0.
-    gamma_R : rotational Coulomb coefficient, a length (eq. 3.10c-d):
+    gamma_T : tangential Coulomb coefficient (dimensionless, eq. 3.10a-b)
+        of the axial sliding; default 0.
+    gamma_R : rotational Coulomb coefficient, a length (eq. 3.10c-d), of the
+        circumferential sliding (around the rod's axis, docs/friction.md F7):
         ``|f_R| <= gamma_R f_N``; default 0.  With ``gamma_T = gamma_R = 0``
         (the default) no friction code runs.
     mu_T : tangential compliance (slip increment per unit friction force
