@@ -64,10 +64,10 @@ def _log_to_terminal(level):
     return undo
 
 
-def _needs_render(err):
+def _needs_render(err, alternative=""):
     """A missing optional rendering package, said with the fix."""
     _err(f"rendering needs the optional package {err.name!r}: "
-         "pip install 'skfem_rod[render]' (or set render = false in [output])")
+         f"pip install 'skfem_rod[render]'{alternative}")
     return BAD_INPUT
 
 
@@ -119,7 +119,7 @@ def cmd_run(args):
     try:
         written = scene.write(result, out=args.out, wall_time=wall)
     except ModuleNotFoundError as err:
-        return _needs_render(err)
+        return _needs_render(err, " (or set render = false in [output])")
     except OSError as err:
         _err(f"cannot write the output: {err}")
         return BAD_INPUT

@@ -80,6 +80,16 @@ def test_run_without_output_says_it_wrote_nothing(tmp_path, capsys, monkeypatch)
     assert not [h for h in __import__("logging").getLogger("skfem_rod").handlers]
 
 
+def test_missing_render_extra_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
+    (tmp_path / "pic.py").write_text("def main(out='x'):\n    import pyvista\n")
+    monkeypatch.setattr(cli, "demos_dir", lambda: tmp_path)
+    monkeypatch.setitem(sys.modules, "pyvista", None)                # not installed
+    assert cli.main(["demo", "pic"]) == 2
+    err = capsys.readouterr().err
+    assert "'pyvista'" in err and "pip install 'skfem_rod[render]'" in err
+    assert "Traceback" not in err
+
+
 # ---------------------------------------------------------------------------
 # a real non-editable install in a fresh virtual environment, outside the
 # checkout (the dependencies come from this environment's site-packages)
