@@ -23,15 +23,13 @@ array([[0., 0., 1.],
 import numpy as np
 
 from .rotations import expm
-from .validation import positive
+from .validation import positive, finite_vector, points as _points
 
 
 def _unit(v, name):
-    v = np.asarray(v, dtype=float)
-    n = np.linalg.norm(v)
-    if v.shape != (3,) or not np.isfinite(n) or n == 0:
-        raise ValueError(f"{name} must be a nonzero finite 3-vector, got {v!r}")
-    return v / n
+    v = finite_vector(name, v, nonzero=True)
+    v = v / np.abs(v).max()                     # no overflow in the norm
+    return v / np.linalg.norm(v)
 
 
 def frames_from(t, d1):
@@ -131,7 +129,7 @@ def straight(length, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0), d1=None):
     if d1 is None and abs(t[2]) < 0.9:
         d1v = np.cross(np.array([0.0, 0.0, 1.0]), t)
         d1v /= np.linalg.norm(d1v)
-    start = np.asarray(start, float)
+    start = finite_vector("start", start)
     R = frames_from(t[None], d1v[None])[0]
 
     def f(s):
@@ -158,9 +156,14 @@ def arc(radius, angle, start=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
     radius = positive("radius", radius)
     angle = positive("angle", angle)
     t0 = _unit(tangent, "tangent")
-    n0 = np.asarray(toward, float) - np.dot(toward, t0) * t0
-    n0 = _unit(n0, "toward (component normal to tangent)")
-    start = np.asarray(start, float)
+    n0 = _unit(toward, "toward")
+    n0 = n0 - np.dot(n0, t0) * t0
+    if np.linalg.norm(n0) < 1e-12:
+        raise ValueError(f"toward must not be parallel to tangent, got toward = "
+                         f"{np.asarray(toward).tolist()} and tangent = "
+                         f"{np.asarray(tangent).tolist()}")
+    n0 = n0 / np.linalg.norm(n0)
+    start = finite_vector("start", start)
 
     def f(s):
         a = s / radius
@@ -190,7 +193,7 @@ def helix(radius, pitch, turns, axis_start=(0.0, 0.0, 0.0)):
     c = pitch / (2 * np.pi)
     k = np.hypot(radius, c)
     length = 2 * np.pi * turns * k
-    o = np.asarray(axis_start, float)
+    o = finite_vector("axis_start", axis_start)
 
     def f(s):
         p = s / k
@@ -227,7 +230,14 @@ def curve(r_of_s, length, d1_of_s=None, ds=None):
         t = (np.asarray(r_of_s(s + h)) - np.asarray(r_of_s(s - h))) / (2 * h)
         if d1_of_s is None:
             return r, parallel_transport(s, t)
-        return r, frames_from(t, np.asarray(d1_of_s(s), float))
+        d1 = np.asarray(d1_of_s(s), float)
+        if d1.shape != (len(s), 3) or not np.all(np.isfinite(d1)):
+            raise ValueError(f"d1_of_s(s) must return finite directors of shape "
+                             f"(len(s), 3) = ({len(s)}, 3), got shape {d1.shape}")
+        return r, frames_from(t, d1)
+    if d1_of_s is not None and not callable(d1_of_s):
+        raise ValueError(f"d1_of_s must be a callable s -> (n, 3) directors, got "
+                         f"{type(d1_of_s).__name__}")
     return Shape(length, f, "curve")
 
 
@@ -246,9 +256,8 @@ def polyline(points, d1=None):
            [2., 0., 0.]])
     """
     from scipy.interpolate import CubicSpline
-    P = np.asarray(points, float)
-    if P.ndim != 2 or P.shape[1] != 3 or len(P) < 2 or not np.all(np.isfinite(P)):
-        raise ValueError("points must be a finite (m, 3) array with m >= 2")
+    P = _points("points", points, minimum=2)
+    D = None if d1 is None else _points("d1", d1, n=len(P))
     chord = np.r_[0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
     if np.any(np.diff(chord) <= 0):
         raise ValueError("points must be distinct consecutive points")
@@ -256,7 +265,7 @@ def polyline(points, d1=None):
     u = np.linspace(0, chord[-1], 200 * len(P))
     sp_u = np.r_[0, np.cumsum(np.linalg.norm(np.diff(spl(u), axis=0), axis=1))]
     length = sp_u[-1]
-    d1spl = None if d1 is None else CubicSpline(chord, np.asarray(d1, float))
+    d1spl = None if D is None else CubicSpline(chord, D)
 
     def r_of_s(s):
         return spl(np.interp(s, sp_u, u))
@@ -306,10 +315,14 @@ def ring(radius, center=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), start=(1.0, 0.0
         raise ValueError(f"twist_turns must be an integer (whole turns close the frame), "
                          f"got {twist_turns!r}")
     nz = _unit(normal, "normal")
-    e1 = np.asarray(start, float) - np.dot(start, nz) * nz
-    e1 = _unit(e1, "start (component in the ring plane)")
+    e1 = _unit(start, "start")
+    e1 = e1 - np.dot(e1, nz) * nz
+    if np.linalg.norm(e1) < 1e-12:
+        raise ValueError(f"start must not be parallel to normal, got start = "
+                         f"{np.asarray(start).tolist()}")
+    e1 = e1 / np.linalg.norm(e1)
     e2 = np.cross(nz, e1)
-    c = np.asarray(center, float)
+    c = finite_vector("center", center)
     length = 2 * np.pi * radius
     n_tw = int(twist_turns)
 

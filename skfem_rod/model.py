@@ -15,6 +15,7 @@ import numpy as np
 from .assembly import reference_strains
 from .geometry import Shape
 from .loads import PointLoad, DistributedLoad
+from . import validation
 from .validation import finite_vector
 from .mesh import RodMesh
 from .section import Section
@@ -33,10 +34,31 @@ def _components(components):
     return arr.tolist()
 
 
-def _flag(name, value):
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be True or False, got {value!r}")
-    return bool(value)
+_flag = validation.flag
+
+#: bytes a solve needs per element at ``n_quad`` Gauss points (measured:
+#: about 72 kB per element at 3 points, mesh, bases, tangent and its
+#: factorization), for the memory estimate of :class:`Rod`
+_BYTES_PER_ELEMENT = (20e3, 20e3)
+#: bytes kept per node and load step (positions, rotations, reactions)
+_BYTES_PER_NODE_STEP = 12 * 8
+#: reference-shape check: largest distance between the P3-interpolated
+#: reference centreline and the given curve, relative to the smallest radius
+#: of curvature, and largest angle (rad) between the interpolated and the
+#: given frames
+REFERENCE_POSITION_TOL = 0.1
+REFERENCE_FRAME_TOL = 0.3
+#: frame rotation per element (rad) the element count advised by
+#: ``Rod.check_reference`` aims at (a circle needs about 3.3 for the tolerances)
+REFERENCE_TURN = 2.5
+#: contact compliance allowed around the default ``10 eps^4 / EI``
+#: (factors): stiffer makes the tangent singular to round-off, softer lets
+#: strands pass through each other
+PENALTY_RANGE = (1e-12, 1e4)
+#: strands of the reference may start pressed into each other by at most this
+#: fraction of the contact diameter (a preload, e.g. the plies of
+#: ``geometry.plectoneme(0.98 eps, ...)``); deeper is refused
+INITIAL_OVERLAP_TOL = 0.05
 
 
 @dataclass
@@ -59,6 +81,28 @@ class Support:
     #: ``rotation`` and ``displacement`` are expressed; None: the spatial axes
     #: (``rotation_vector`` is always spatial)
     basis: np.ndarray = None
+    #: which call holds each component (0-2 position, 3-5 rotation) and
+    #: whether it prescribes a motion: ``{component: (call, prescribed)}``
+    holders: dict = field(default_factory=dict)
+
+    def hold(self, components, call, prescribed):
+        """Record that ``call`` holds ``components``; ValueError (nothing
+        changed) if one of them is already held and either call prescribes
+        its motion -- a prescribed component is held by one support only, as
+        in the scene files."""
+        for c in components:
+            prev = self.holders.get(c)
+            if prev is not None and (prev[1] or prescribed):
+                what = "position" if c < 3 else "rotation"
+                raise ValueError(
+                    f"{call} conflicts with {prev[0]} at node {self.node}: both hold the "
+                    f"{what} component {c % 3} and one of them prescribes its motion; a "
+                    "prescribed component must be held by one support only (e.g. "
+                    "fix_rotation(...) + prescribe_displacement(...) instead of clamp(...) "
+                    "+ prescribe_displacement(...))")
+        for c in components:
+            if self.holders.get(c) is None or prescribed:
+                self.holders[c] = (call, prescribed)
 
 
 class Rod:
@@ -112,8 +156,29 @@ class Rod:
         self.shape = shape
         self.section = section
         closed = bool(getattr(shape, "closed", False))
+        validation.count("n_elements", n_elements, 1, validation.MAX_ELEMENTS)
+        validation.count("n_quad", n_quad, 1, validation.MAX_QUAD)
+        validation.memory_budget(
+            f"a rod of n_elements={n_elements} (n_quad={n_quad})",
+            n_elements * (_BYTES_PER_ELEMENT[0] + _BYTES_PER_ELEMENT[1] * n_quad / 3))
+        if not np.isfinite(shape.length / (3 * n_elements)) or shape.length > 1e150:
+            raise ValueError(f"shape length {shape.length!r} is out of the range a rod can "
+                             "be computed in (at most 1e150: energies scale with powers of "
+                             "the length); choose other units")
         self.mesh = RodMesh(shape.length, n_elements, n_quad, closed=closed)
-        self.r0, self.R0 = shape(self.mesh.s_nodes)
+        with np.errstate(all="ignore"):
+            self.r0, self.R0 = shape(self.mesh.s_nodes)
+        for name, a in (("positions", self.r0), ("frames", self.R0)):
+            if not np.all(np.isfinite(a)):
+                k = int(np.argwhere(~np.isfinite(a))[0, 0])
+                raise ValueError(
+                    f"shape {shape!r} gives non-finite reference {name} (NaN or inf) at "
+                    f"s = {self.mesh.s_nodes[k]:g}: check its parameters (start, direction, "
+                    "points, ...)")
+        if np.abs(self.r0).max() > 1e150:
+            raise ValueError(f"shape {shape!r} has reference positions up to "
+                             f"{np.abs(self.r0).max():.3g}, beyond the range a rod can be "
+                             "computed in (1e150); choose other units or move it")
         if closed:                      # the ring must close up, frame included
             ends_r, ends_R = shape(np.array([0.0, shape.length]))
             gap = np.linalg.norm(ends_r[1] - ends_r[0]) / shape.length
@@ -128,6 +193,7 @@ class Rod:
         if natural not in ("reference", "straight"):
             raise ValueError(f"natural must be 'reference' or 'straight', got {natural!r}")
         self.natural = natural
+        self.check_reference()
         self.eps0 = reference_strains(self.mesh, self.r0, self.R0, self.C)
         if natural == "straight":                 # unit stretch along d3, nothing else
             self.eps0 = np.zeros_like(self.eps0)
@@ -217,6 +283,7 @@ class Rod:
         array([ True,  True,  True,  True,  True,  True])
         """
         sup = self._support(where)
+        sup.hold(range(6), f"clamp({where!r})", False)
         sup.position[:] = True
         sup.rotation[:] = True
         return self
@@ -248,6 +315,7 @@ class Rod:
         """
         comps = _components(components)
         sup = self._support(where)
+        sup.hold(comps, f"pin({where!r})", False)
         sup.position[comps] = True
         return self
 
@@ -274,6 +342,7 @@ class Rod:
         """
         comps = _components(components)
         sup = self._support(where)
+        sup.hold([3 + c for c in comps], f"fix_rotation({where!r})", False)
         sup.rotation[comps] = True
         return self
 
@@ -310,6 +379,7 @@ class Rod:
         """
         rotvec = _vector("rotation_vector", rotation_vector)
         sup = self._support(where)
+        sup.hold(range(3, 6), f"prescribe_rotation({where!r})", True)
         sup.rotation[:] = True
         sup.rotation_vector = rotvec
         return self
@@ -345,6 +415,7 @@ class Rod:
         comps = _components(components)
         d = _vector("displacement", displacement)
         sup = self._support(where)
+        sup.hold(comps, f"prescribe_displacement({where!r})", True)
         sup.position[comps] = True
         sup.displacement[comps] = d[comps]
         return self
@@ -386,7 +457,8 @@ class Rod:
         True
         """
         self.point_loads.append(PointLoad(self.node(where), _vector("force", force),
-                                          "force", bool(follower), _flag("constant", constant)))
+                                          "force", _flag("follower", follower),
+                                          _flag("constant", constant)))
         return self
 
     def add_moment(self, where, moment, follower=False, constant=False):
@@ -416,7 +488,8 @@ class Rod:
         array([0.     , 0.63662, 0.     ])
         """
         self.point_loads.append(PointLoad(self.node(where), _vector("moment", moment),
-                                          "moment", bool(follower), _flag("constant", constant)))
+                                          "moment", _flag("follower", follower),
+                                          _flag("constant", constant)))
         return self
 
     def add_distributed_force(self, force):
@@ -481,7 +554,11 @@ class Rod:
         if not callable(value):
             return _vector(name, value)
         s = self.mesh.s_quad.ravel()
-        q = np.asarray(value(s), dtype=float)
+        try:
+            q = np.asarray(value(s), dtype=float)
+        except Exception as err:
+            raise ValueError(f"distributed {name} callable failed at the quadrature points "
+                             f"({type(err).__name__}: {err})") from err
         if q.shape != (s.size, 3):
             raise ValueError(f"distributed {name} callable must return an array of shape "
                              f"(len(s), 3) for arclengths s; got shape {q.shape} "
@@ -519,17 +596,34 @@ class Rod:
         >>> rod.enable_contact().contact.radius
         0.01
         """
+        from dataclasses import fields
         from .contact import ContactOptions
         eps = self.section.radius if radius is None else radius
         if eps is None:
             raise ValueError("contact needs a radius: give radius=... or a Section with radius")
-        if not (np.isfinite(eps) and eps > 0):
-            raise ValueError(f"contact radius must be a finite number > 0, got {eps!r}")
+        eps = validation.positive("radius", eps)
+        if penalty is not None:
+            penalty = validation.positive("penalty", penalty)
+        if exclusion is not None:
+            exclusion = validation.positive("exclusion", exclusion)
+        allowed = [f.name for f in fields(ContactOptions)
+                   if f.name not in ("radius", "penalty", "exclusion")]
+        unknown = sorted(set(options) - set(allowed))
+        if unknown:
+            raise ValueError(f"unknown contact option(s) {', '.join(map(repr, unknown))}; "
+                             f"allowed: radius, penalty, exclusion, {', '.join(allowed)}")
         EI = max(self.section.EI1, self.section.EI2)
-        self.contact = ContactOptions(
-            radius=float(eps),
-            penalty=10.0 * eps**4 / EI if penalty is None else penalty,
+        with np.errstate(over="ignore", under="ignore"):
+            default = 10.0 * eps**4 / EI
+        contact = ContactOptions(
+            radius=eps, penalty=default if penalty is None else penalty,
             exclusion=np.pi * eps if exclusion is None else exclusion, **options)
+        previous, self.contact = self.contact, contact
+        try:
+            self.check_contact()
+        except ValueError:
+            self.contact = previous
+            raise
         return self
 
     def support_basis(self, where, basis):
@@ -567,7 +661,10 @@ class Rod:
         >>> bool(abs((res.position(1.0) - [1.0, 0.0, 0.0]) @ n) < 1e-12)
         True
         """
-        Q = np.asarray(basis, dtype=float)
+        try:
+            Q = np.asarray(basis, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"basis must be a finite 3 x 3 matrix, got {basis!r}") from None
         if Q.shape != (3, 3) or not np.all(np.isfinite(Q)):
             raise ValueError(f"basis must be a finite 3 x 3 matrix, got shape {Q.shape}")
         if not np.allclose(Q.T @ Q, np.eye(3), atol=1e-10):
@@ -639,13 +736,14 @@ class Rod:
         fixed = self.fixed_dofs()
         modes = np.zeros((self.mesh.n_dofs, 6))
         centre = self.r0.mean(axis=0)
+        arm = (self.r0 - centre) / self.length          # scale free: any units
         names = []
         for k in range(3):
             modes[k::6, k] = 1.0
             e = np.eye(3)[k]
-            modes[0::6, 3 + k] = np.cross(e, self.r0 - centre)[:, 0]
-            modes[1::6, 3 + k] = np.cross(e, self.r0 - centre)[:, 1]
-            modes[2::6, 3 + k] = np.cross(e, self.r0 - centre)[:, 2]
+            modes[0::6, 3 + k] = np.cross(e, arm)[:, 0]
+            modes[1::6, 3 + k] = np.cross(e, arm)[:, 1]
+            modes[2::6, 3 + k] = np.cross(e, arm)[:, 2]
             modes[3 + k::6, 3 + k] = 1.0
         T = self.dof_basis()
         if T is not None:                       # modes in the supports' bases
@@ -670,6 +768,177 @@ class Rod:
                 "supports leave rigid-body mode(s) unconstrained: " + "; ".join(names)
                 + ". Add a support (clamp, pin, fix_rotation or prescribe_*) that "
                 "removes them.")
+        if self.contact is not None:
+            self.check_contact()
+
+    def check_steps(self, n_steps):
+        """Raise ValueError unless ``n_steps`` is an integer in ``[1,
+        validation.MAX_STEPS]`` whose kept steps fit in memory (every
+        converged step keeps the nodal positions and rotations).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod.check_steps(10**9)
+        Traceback (most recent call last):
+        ...
+        ValueError: n_steps must be an integer in [1, 1000000], got 1000000000
+        """
+        n = validation.count("n_steps", n_steps, 1, validation.MAX_STEPS)
+        validation.memory_budget(
+            f"keeping n_steps={n} steps of {self.mesh.n_nodes} nodes",
+            (n + 1) * self.mesh.n_nodes * _BYTES_PER_NODE_STEP)
+        return n
+
+    def check_reference(self):
+        """Raise ValueError if the mesh cannot represent the reference shape.
+
+        The P3 interpolation of the nodal positions and frames is compared
+        with the shape at three points per element (where the interpolation
+        error of a cubic peaks): the largest distance, relative to the
+        smallest radius of curvature of the shape, must stay below
+        :data:`REFERENCE_POSITION_TOL` and the largest angle between the
+        frames below :data:`REFERENCE_FRAME_TOL` rad.  The message gives
+        the element count that meets both (the error of the cubic
+        interpolation falls as ``h^4``).
+
+        Examples
+        --------
+        An arc of radius 0.01 turning 16 times on 4 elements:
+
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> Rod(geometry.arc(0.01, 100.0), Section.circle(E=1e7, nu=0.3, radius=1e-3), 4)
+        Traceback (most recent call last):
+        ...
+        ValueError: the mesh cannot represent the reference shape ...
+        """
+        from .element import shape_functions
+        from .kinematics import local_coordinates, ElementRotationError
+        from .rotations import expm, logm
+        mesh = self.mesh
+        ne = mesh.n_elements
+        xi = np.tile([1 / 6, 1 / 2, 5 / 6], ne)
+        e = np.repeat(np.arange(ne), 3)
+        h = np.diff(mesh.vertices)
+        s = mesh.vertices[e] + xi * h[e]
+        d = 1e-3 * h[e]
+        with np.errstate(all="ignore"):
+            r_ex, R_ex = self.shape(s)
+            _, R_m = self.shape(np.maximum(s - d, 0.0))
+            _, R_p = self.shape(np.minimum(s + d, self.length))
+        if not (np.all(np.isfinite(r_ex)) and np.all(np.isfinite(R_ex))
+                and np.all(np.isfinite(R_m)) and np.all(np.isfinite(R_p))):
+            raise ValueError(f"shape {self.shape!r} gives non-finite positions or frames "
+                             "between the nodes: check its parameters")
+        # rotation rate of the frame (curvature and twist) and curvature
+        omega = np.linalg.norm(logm(np.swapaxes(R_m, -1, -2) @ R_p), axis=-1) / (2 * d)
+        kappa = np.linalg.norm(R_p[:, :, 2] - R_m[:, :, 2], axis=-1) / (2 * d)
+        rho = 1.0 / max(float(kappa.max()), 1e-300)
+        N = shape_functions(xi)[0]                                  # (4, m)
+        nodes = mesh.nodes[e]
+        r_h = np.einsum("Im,mIi->mi", N, self.r0[nodes])
+        pos = float(np.linalg.norm(r_h - r_ex, axis=1).max()) / rho
+        try:
+            loc = local_coordinates(self.r0[mesh.nodes], self.R0[mesh.nodes])
+            psi = np.einsum("Im,mIi->mi", N, loc.psi[e])
+            R_h = loc.Rr[e] @ expm(psi)
+            ang = float(np.linalg.norm(logm(np.swapaxes(R_h, -1, -2) @ R_ex), axis=-1).max())
+        except ElementRotationError:
+            ang = np.inf
+        tol_p, tol_a = REFERENCE_POSITION_TOL, REFERENCE_FRAME_TOL
+        if pos <= tol_p and ang <= tol_a:
+            return
+        # elements needed: the h^4 law from the measured errors, and at most
+        # REFERENCE_TURN rad of frame rotation per element (beyond it the
+        # errors saturate and the law says nothing)
+        turn = float((omega * h[e]).max())
+        factor = max((pos / tol_p) ** 0.25 if np.isfinite(pos) else 1.0,
+                     (ang / tol_a) ** 0.25 if np.isfinite(ang) else 1.0,
+                     turn / REFERENCE_TURN)
+        need = int(np.ceil(1.05 * ne * factor))
+        raise ValueError(
+            f"the mesh cannot represent the reference shape {self.shape!r}: with "
+            f"n_elements={ne} its P3 interpolation is up to {pos:.3g} times the smallest "
+            f"radius of curvature ({rho:.3g}) off the given curve (allowed {tol_p:g}) and "
+            f"its frames up to {ang:.3g} rad off (allowed {tol_a:g}); an element turns "
+            f"the frame by up to {turn:.3g} rad. Use n_elements >= {need}")
+
+    def check_contact(self):
+        """Raise ValueError if the contact parameters make no sense for this
+        rod: an exclusion length that excludes every pair (``>=`` the
+        length, half of it for a ring) or shorter than the contact diameter
+        ``2 eps`` (neighbours would touch at rest), a contact diameter not
+        smaller than the rod, or strands that start interpenetrated (the
+        reference centreline, sampled densely, has points farther apart
+        along the rod than the exclusion but closer in space than ``2 eps``;
+        the message names their arclengths).  Called by
+        :meth:`check_constraints` (so at the start of every solve).
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.arc(0.1, 6.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 8)
+        >>> rod.enable_contact(radius=0.02)
+        Traceback (most recent call last):
+        ...
+        ValueError: contact radius 0.02: the strands start interpenetrated ...
+        """
+        c = self.contact
+        if c is None:
+            return
+        key = (c.radius, c.exclusion, c.penalty)
+        if getattr(self, "_contact_checked", None) == key:
+            return
+        L, eps, ex = self.length, c.radius, c.exclusion
+        closed = bool(getattr(self.mesh, "closed", False))
+        span = L / 2 if closed else L
+        if not 2 * eps < span:
+            raise ValueError(f"contact radius {eps:g}: the contact diameter 2 eps = "
+                             f"{2 * eps:g} must be smaller than the rod ({'half the ring, ' if closed else ''}"
+                             f"{span:g})")
+        if not ex < span:
+            raise ValueError(f"contact exclusion {ex:g} excludes every pair of points: it "
+                             f"must be smaller than the {'half ring' if closed else 'rod length'} "
+                             f"{span:g}")
+        if not ex >= 2 * eps * (1 - 1e-12):
+            raise ValueError(f"contact exclusion {ex:g} must be at least the contact "
+                             f"diameter 2 eps = {2 * eps:g} (points closer along the rod "
+                             "would be in contact at rest); default pi eps")
+        EI = max(self.section.EI1, self.section.EI2)
+        default = 10.0 * eps ** 4 / EI
+        lo, hi = PENALTY_RANGE
+        if not lo * default <= c.penalty <= hi * default:
+            raise ValueError(f"contact penalty {c.penalty:g} is out of range: allowed "
+                             f"{lo:g} to {hi:g} times the default 10 eps^4 / EI = "
+                             f"{default:.3g} (a larger compliance lets strands pass through "
+                             "each other, a smaller one makes the tangent singular)")
+        # initial interpenetration: dense samples of the reference centreline
+        from scipy.spatial import cKDTree
+        n = int(min(max(8 * self.mesh.n_elements, np.ceil(4 * L / eps)), 400_000))
+        s = np.linspace(0.0, L, n + 1)
+        if closed:
+            s = s[:-1]
+        r = self.shape(s)[0]
+        tree = cKDTree(r)
+        gap = 2 * eps * (1 - INITIAL_OVERLAP_TOL)
+        pairs = tree.query_pairs(gap, output_type="ndarray")
+        if len(pairs):
+            ds = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
+            if closed:
+                ds = np.minimum(ds, L - ds)
+            pairs = pairs[ds >= ex]
+        if len(pairs):
+            dist = np.linalg.norm(r[pairs[:, 0]] - r[pairs[:, 1]], axis=1)
+            k = int(np.argmin(dist))
+            a, b = sorted((s[pairs[k, 0]], s[pairs[k, 1]]))
+            raise ValueError(
+                f"contact radius {eps:g}: the strands start interpenetrated: the reference "
+                f"centreline at s = {a:.6g} and s = {b:.6g} is {dist[k]:.4g} apart, less "
+                f"than 2 eps (1 - {INITIAL_OVERLAP_TOL:g}) = {gap:.4g} ({len(pairs)} such "
+                "sample pair(s)); give a smaller radius or a shape whose strands are at "
+                "least 2 eps apart")
+        self._contact_checked = key
 
     def solve(self, n_steps=1, path=None, callback=None, start=None, progress=False,
               **options):

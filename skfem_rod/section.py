@@ -61,7 +61,11 @@ class Section:
         if self.radius is not None:
             object.__setattr__(self, "radius", positive("radius", self.radius))
         if self.matrix is not None:
-            C = np.array(self.matrix, dtype=float)
+            try:
+                C = np.array(self.matrix, dtype=float)
+            except (TypeError, ValueError, OverflowError):
+                raise ValueError(f"matrix must be a finite 6 x 6 array, got "
+                                 f"{self.matrix!r}") from None
             if C.shape != (6, 6) or not np.all(np.isfinite(C)):
                 raise ValueError(f"matrix must be a finite 6 x 6 array, got shape {C.shape}")
             if not np.allclose(C, C.T, rtol=1e-12, atol=0):
@@ -110,13 +114,22 @@ class Section:
         nu = nu_f
         k = (6 * (1 + nu) / (7 + 6 * nu) if shear_coefficient is None
              else positive("shear_coefficient", shear_coefficient))
-        E, radius = np.float64(E), np.float64(radius)     # overflow -> inf -> ValueError
+        E, radius = np.float64(E), np.float64(radius)
         G = E / (2 * (1 + nu))
-        with np.errstate(over="ignore"):
+        with np.errstate(over="ignore", under="ignore"):
             A = np.pi * radius**2
             I = np.pi * radius**4 / 4
-        return cls(EA=E * A, GA1=k * G * A, GA2=k * G * A, EI1=E * I, EI2=E * I,
-                   GJ=G * 2 * I, radius=radius)
+            derived = dict(EA=E * A, GA1=k * G * A, GA2=k * G * A, EI1=E * I, EI2=E * I,
+                           GJ=G * 2 * I)
+        bad = [n for n, v in derived.items() if not (np.isfinite(v) and v > 0)]
+        if bad:                                  # blame the inputs, not a derived value
+            v = derived[bad[0]]
+            raise ValueError(
+                f"radius={float(radius)!r} with E={float(E)!r} is out of floating-point "
+                f"range: it gives {bad[0]} = {float(v)!r} "
+                f"({'overflow' if v > 0 else 'underflow'}); choose units "
+                "in which radius and E are closer to 1")
+        return cls(radius=radius, **derived)
 
     @classmethod
     def from_matrix(cls, C, radius=None):
@@ -141,7 +154,12 @@ class Section:
         >>> sec.EA, sec.GJ, float(sec.C[2, 5])
         (20.0, 0.8, 0.5)
         """
-        C = np.asarray(C, dtype=float)
+        if isinstance(C, (str, bytes)):
+            raise ValueError(f"matrix must be a 6 x 6 array of numbers, got {C!r}")
+        try:
+            C = np.asarray(C, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"matrix must be a 6 x 6 array of numbers, got {C!r}") from None
         if C.shape != (6, 6):
             raise ValueError(f"matrix must be 6 x 6, got shape {C.shape}")
         d = np.diag(C)

@@ -1,36 +1,138 @@
-"""Input checks shared by the package: each raises ValueError naming the
-parameter, the value, and what is allowed."""
+"""Input checks shared by the package (the API and the scene loader): each
+raises ValueError naming the parameter, the value, and what is allowed.
+
+One checker per kind of value, used everywhere that kind is taken: a
+number > 0 (:func:`positive`), an integer (:func:`count`), a flag
+(:func:`flag`), a 3-vector (:func:`finite_vector`), an array of points
+(:func:`points`), a step index (:func:`step_index`), and the sizes a run
+may allocate (:func:`memory_budget`).
+"""
+import numbers
+
 import numpy as np
+
+#: largest number of elements a Rod accepts (about 1.3 GB of mesh, bases and
+#: sparse tangent at 3 Gauss points); beyond it the allocation fails anyway
+MAX_ELEMENTS = 2_000_000
+#: largest number of Gauss points per element
+MAX_QUAD = 32
+#: largest number of load steps of a solve (each converged step is kept)
+MAX_STEPS = 1_000_000
+#: memory a model may ask for before it is refused (bytes)
+MEMORY_LIMIT = 8 * 2**30
+
+
+def _is_real(value):
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        return True
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _show(value):
+    s = repr(value)
+    return s if len(s) <= 80 else s[:77] + "..."
 
 
 def positive(name, value):
-    """``value`` as a float; ValueError unless it is a finite number > 0."""
+    """``value`` as a float; ValueError unless it is a finite number > 0
+    (bools and strings are not numbers)."""
+    if not _is_real(value):
+        raise ValueError(f"{name} must be a finite number > 0, got {_show(value)}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be a finite number > 0, got {_show(value)}") from None
     if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        raise ValueError(f"{name} must be a finite number > 0, got {_show(value)}")
     return v
 
 
-def count(name, value, minimum):
-    """``value`` unless it is an integer >= ``minimum`` (bools rejected)."""
-    if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-            and value >= minimum):
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def nonnegative(name, value):
+    """``value`` as a float; ValueError unless it is a finite number >= 0."""
+    if not _is_real(value) or not (np.isfinite(float(value)) and float(value) >= 0):
+        raise ValueError(f"{name} must be a finite number >= 0, got {_show(value)}")
+    return float(value)
+
+
+def count(name, value, minimum, maximum=None):
+    """``value`` unless it is an integer in ``[minimum, maximum]`` (bools
+    rejected)."""
+    ok = (isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+          and value >= minimum)
+    if ok and maximum is not None and value > maximum:
+        raise ValueError(f"{name} must be an integer in [{minimum}, {maximum}], got "
+                         f"{_show(value)}")
+    if not ok:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {_show(value)}")
     return int(value)
 
 
-def finite_vector(name, value):
-    """A finite 3-vector of numbers."""
+def flag(name, value):
+    """``value`` as a bool; ValueError unless it is True or False (no
+    truthiness: ``"no"`` or ``0`` are refused)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {_show(value)}")
+    return bool(value)
+
+
+def finite_vector(name, value, nonzero=False):
+    """A finite 3-vector of numbers (not all zero with ``nonzero``)."""
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{name} must be a finite 3-vector of numbers, got {_show(value)}")
     try:
         v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be a finite 3-vector of numbers, "
-                         f"got {value!r}") from None
+                         f"got {_show(value)}") from None
     if v.shape != (3,):
         raise ValueError(f"{name} must be a 3-vector, got shape {v.shape}")
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{name} must be finite (no NaN or inf), got {v.tolist()}")
+    if nonzero and not np.any(v):
+        raise ValueError(f"{name} must be a nonzero finite 3-vector, got {v.tolist()}")
     return v
+
+
+def points(name, value, minimum=1, n=None):
+    """A finite ``(m, 3)`` array of numbers with ``m >= minimum`` (or
+    exactly ``n`` rows when given)."""
+    what = f"{n}" if n is not None else f"m >= {minimum}"
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{name} must be a finite (m, 3) array of numbers ({what}), "
+                         f"got {_show(value)}")
+    try:
+        P = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be a finite (m, 3) array of numbers ({what}), "
+                         f"got {_show(value)}") from None
+    if P.ndim != 2 or P.shape[1] != 3 or (n is None and len(P) < minimum):
+        raise ValueError(f"{name} must be a finite (m, 3) array of numbers ({what}), "
+                         f"got shape {P.shape}")
+    if n is not None and len(P) != n:
+        raise ValueError(f"{name} must have one row per point ({n}), got {len(P)}")
+    if not np.all(np.isfinite(P)):
+        k = int(np.argwhere(~np.isfinite(P))[0, 0])
+        raise ValueError(f"{name} must be finite (no NaN or inf): row {k} is "
+                         f"{P[k].tolist()}")
+    return P
+
+
+def step_index(value, n_steps, name="step"):
+    """A valid index into ``n_steps`` stored steps (negative counts from
+    the end), as a non-negative int."""
+    if not (isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))):
+        raise ValueError(f"{name} must be an integer step index, got {_show(value)}")
+    if not -n_steps <= value < n_steps:
+        raise ValueError(f"{name} = {value} is out of range: the result has {n_steps} "
+                         f"step(s), indices {-n_steps} to {n_steps - 1}")
+    return int(value) % n_steps
+
+
+def memory_budget(what, n_bytes, limit=None):
+    """Refuse a model that would need ``n_bytes`` of memory (an estimate)
+    beyond ``limit`` (default :data:`MEMORY_LIMIT`), naming ``what``."""
+    limit = MEMORY_LIMIT if limit is None else limit
+    if n_bytes > limit:
+        raise ValueError(f"{what} would need about {n_bytes / 2**30:.3g} GiB of memory, "
+                         f"more than the limit of {limit / 2**30:.3g} GiB "
+                         "(skfem_rod.validation.MEMORY_LIMIT)")
