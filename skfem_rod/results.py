@@ -221,7 +221,21 @@ class Result:
         array([ 0.  , -0.01,  0.  ])
         """
         n = self.rod.node(where)
-        return self.steps[step].reactions[n]
+        st = self._step(step)
+        if n not in st.reactions:
+            held = sorted(float(self.rod.mesh.s_nodes[k]) for k in st.reactions)
+            raise ValueError(f"where={where!r}: node {n} (s = {self.rod.mesh.s_nodes[n]:g}) "
+                             "has no support, so no reaction; the supported nodes are at "
+                             f"s = {', '.join(f'{x:g}' for x in held) or '(none)'}")
+        return st.reactions[n]
+
+    def _step(self, step):
+        """The stored step ``step`` (an index, negative from the end);
+        ValueError naming the valid range otherwise."""
+        from .validation import step_index
+        if not self.steps:
+            raise ValueError("the result has no converged step")
+        return self.steps[step_index(step, len(self.steps))]
 
     # fields --------------------------------------------------------------
     def nodes(self, step=-1):
@@ -244,7 +258,7 @@ class Result:
         ((13,), (13, 3), (13, 3, 3))
         """
         o = self.rod.mesh.order
-        st = self.steps[step]
+        st = self._step(step)
         return self.rod.mesh.s_nodes[o], st.r[o], st.R[o]
 
     def evaluate(self, s, step=-1):
@@ -285,8 +299,8 @@ class Result:
             return {k: v[0] for k, v in self.evaluate([s], step).items()}
         mesh, rod = self.rod.mesh, self.rod
         s = np.atleast_1d(np.asarray(s, dtype=float))
+        st = self._step(step)
         e, xi = mesh.locate(s)
-        st = self.steps[step]
         eps, Rs, r = self._fields(e, xi[:, None], st.r, st.R)
         xg = np.asarray(mesh.sbasis.X[0], float)                   # Gauss points
         eg, Rg, _ = self._fields(e, np.broadcast_to(xg, (len(s), xg.size)), st.r, st.R)
@@ -365,7 +379,8 @@ class Result:
         >>> result.sample(per_element=2)["r"].shape
         (9, 3)
         """
-        n = self.rod.mesh.n_elements * per_element + 1
+        from .validation import count
+        n = self.rod.mesh.n_elements * count("per_element", per_element, 1, 1024) + 1
         return self.evaluate(np.linspace(0, self.rod.length, n), step)
 
     # output ------------------------------------------------------------------
@@ -392,7 +407,7 @@ class Result:
         f = self.sample(per_element, step)
         data = dict(arclength=f["s"], n=f["n"], m=f["m"], v=f["v"], u=f["u"],
                     twist=f["u"][:, 2] - f["u0"][:, 2])
-        c = self.steps[step].contact
+        c = self._step(step).contact
         if self.rod.contact is not None:
             fc = np.zeros(len(f["s"]))
             if c is not None and c.s.size:
@@ -517,7 +532,7 @@ class Result:
         >>> result.contact_states().shape
         (0,)
         """
-        c = self.steps[step].contact
+        c = self._step(step).contact
         if c is None:
             return np.zeros(0, int)
         if not c.friction:
@@ -538,7 +553,7 @@ class Result:
         >>> result.contact_points().shape
         (0, 3)
         """
-        c = self.steps[step].contact
+        c = self._step(step).contact
         if c is None or c.s.size == 0:
             return np.zeros((0, 3))
         return self.evaluate(c.s, step)["r"]
