@@ -143,6 +143,23 @@ def _validate_field_data(field_data):
 # --------------------------------------------------------------------------
 # atomic file writing
 # --------------------------------------------------------------------------
+def check_path(name, path):
+    """``os.fspath(path)``; ValueError naming ``name`` if it is not a path
+    or contains a NUL byte (which no file system accepts)."""
+    try:
+        p = os.fspath(path)
+    except TypeError:
+        raise ValueError(f"{name} must be a path (str or os.PathLike), got "
+                         f"{type(path).__name__}") from None
+    if isinstance(p, bytes):
+        p = os.fsdecode(p)
+    if "\0" in p:
+        raise ValueError(f"{name} {p!r} contains a NUL byte, which no file name may contain")
+    if not p:
+        raise ValueError(f"{name} must not be empty")
+    return p
+
+
 def _file_mode():
     """Permission bits for a new file, ``0o666`` minus the process umask.
 
@@ -262,7 +279,8 @@ def write_vtu(path, points, frames, point_data=None, field_data=None):
         On wrong shapes, non-numeric or non-finite values (NaN/inf).  Nothing
         is written in that case.
     """
-    points, frames = _validate_points_frames(points, frames)
+    path = check_path("path", path)
+    points, frames = validate_points_frames(points, frames)
     point_data = _validate_point_data(point_data, points.shape[0])
     field_data = _validate_field_data(field_data)
     return _write_vtu_validated(path, points, frames, point_data, field_data)
@@ -382,7 +400,7 @@ def write_series(directory, basename, steps, *, xdmf=True):
         non-increasing times, or an invalid ``basename``.
     """
     if not isinstance(basename, str) or not basename or basename in (".", "..") or any(
-        sep in basename for sep in ("/", "\\", os.sep)
+        sep in basename for sep in ("/", "\\", os.sep, "\0")
     ):
         raise ValueError(
             f"basename {basename!r} is not allowed; expected a non-empty file "
@@ -432,11 +450,11 @@ def write_series(directory, basename, steps, *, xdmf=True):
                 f"{prev_time!r}; times must be strictly increasing"
             )
         prev_time = time
-        points, frames = _validate_points_frames(st["points"], st["frames"], prefix=prefix)
+        points, frames = validate_points_frames(st["points"], st["frames"], prefix=prefix)
         pdata = _validate_point_data(st.get("point_data"), points.shape[0], prefix=prefix)
         checked.append(dict(time=time, points=points, frames=frames, point_data=pdata))
 
-    directory = os.fspath(directory)
+    directory = check_path("directory", directory)
     os.makedirs(directory, exist_ok=True)
     width = max(4, len(str(len(checked) - 1)))
     written = []
@@ -490,8 +508,9 @@ def write_json(path, data):
     """Write a JSON summary atomically (complete or not at all); non-finite
     numbers are refused rather than written as NaN."""
     import json
+    path = check_path("path", path)
     text = json.dumps(_jsonable(data), indent=2)
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         with open(tmp, "w") as f:
             f.write(text + "\n")
     return os.fspath(path)
