@@ -250,9 +250,10 @@ class SweepPoint:
 
 def point_key(data):
     """Stable hash of a validated scene's content (what the solve sees:
-    not its title, outputs or sweep)."""
+    not its title, outputs or sweep) and of the skfem_rod version."""
+    from . import __version__
     content = {k: v for k, v in data.items() if k not in ("title", "output", "sweep")}
-    text = json.dumps([FORMAT, content], sort_keys=True, default=float)
+    text = json.dumps([FORMAT, __version__, content], sort_keys=True, default=float)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
