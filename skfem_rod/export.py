@@ -280,7 +280,7 @@ def write_vtu(path, points, frames, point_data=None, field_data=None):
         is written in that case.
     """
     path = check_path("path", path)
-    points, frames = validate_points_frames(points, frames)
+    points, frames = _validate_points_frames(points, frames)
     point_data = _validate_point_data(point_data, points.shape[0])
     field_data = _validate_field_data(field_data)
     return _write_vtu_validated(path, points, frames, point_data, field_data)
@@ -450,7 +450,7 @@ def write_series(directory, basename, steps, *, xdmf=True):
                 f"{prev_time!r}; times must be strictly increasing"
             )
         prev_time = time
-        points, frames = validate_points_frames(st["points"], st["frames"], prefix=prefix)
+        points, frames = _validate_points_frames(st["points"], st["frames"], prefix=prefix)
         pdata = _validate_point_data(st.get("point_data"), points.shape[0], prefix=prefix)
         checked.append(dict(time=time, points=points, frames=frames, point_data=pdata))
 
@@ -510,7 +510,7 @@ def write_json(path, data):
     import json
     path = check_path("path", path)
     text = json.dumps(_jsonable(data), indent=2)
-    with atomic_path(path) as tmp:
+    with _atomic_path(path) as tmp:
         with open(tmp, "w") as f:
             f.write(text + "\n")
     return os.fspath(path)
