@@ -538,13 +538,22 @@ def _support_meshes(pv, supports, size):
         if kind == "pin":
             balls.append(pv.Sphere(radius=size / 2, center=p, theta_resolution=20,
                                    phi_resolution=20))
-        elif kind in ("clamp", "turn", "slide"):
+        elif kind in ("clamp", "turn", "move", "slide"):
             blocks.append(pv.Cube(center=p, x_length=size, y_length=size, z_length=size))
         else:
-            raise ValueError(f"support kind {kind!r}; expected 'clamp', 'pin', 'turn' "
-                             f"or 'slide'")
+            raise ValueError(f"support kind {kind!r}; expected 'clamp', 'pin', 'turn', "
+                             f"'move' or 'slide'")
     merge = (lambda ms: None if not ms else (ms[0] if len(ms) == 1 else ms[0].merge(ms[1:])))
     return merge(blocks), merge(balls)
+
+
+def _block_label(supports):
+    """Legend text of the support blocks: clamps, turned or moved ends."""
+    kinds = {sup.get("kind", "clamp") for sup in supports or ()}
+    names = [name for kind, name in (("clamp", "clamp"), ("turn", "turned end"),
+                                     ("move", "moved end"), ("slide", "guided end"))
+             if kind in kinds]
+    return " / ".join(names)
 
 
 def _load_meshes(pv, loads, length, start_offset):
@@ -652,8 +661,9 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
     reference : (points, frames), optional
         The reference shape, drawn as a translucent grey ghost.
     supports : list of dict, optional
-        ``{"point": (3,), "kind": "clamp" | "pin" | "turn" | "slide"}``:
-        dark grey blocks (clamps, prescribed motions) or balls (pins).
+        ``{"point": (3,), "kind": "clamp" | "pin" | "turn" | "move" | "slide"}``:
+        dark grey blocks (clamps, turned or moved ends, partly guided ends)
+        or balls (pins).
     loads : list of dict, optional
         ``{"point": (3,), "vector": (3,), "kind": "force" | "moment"}``:
         arrows of one length showing the direction (forces black, moments
@@ -766,7 +776,7 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
             if blocks is not None:
                 pl.add_mesh(blocks, color=SUPPORT_COLOR, ambient=0.3)
                 fit_pts.append(blocks.points)
-                entries.append(("box", SUPPORT_COLOR, "clamp"))
+                entries.append(("box", SUPPORT_COLOR, _block_label(supports)))
             if balls is not None:
                 pl.add_mesh(balls, color=SUPPORT_COLOR, smooth_shading=True, ambient=0.3)
                 fit_pts.append(balls.points)
@@ -1187,7 +1197,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     base_entries = [("line", stripe_color, "material line d\u2081")]
     for kind, _ in statics:
         base_entries.insert(0, {"ghost": ("ghost", REFERENCE_COLOR, "reference shape"),
-                                "block": ("box", SUPPORT_COLOR, "clamp"),
+                                "block": ("box", SUPPORT_COLOR, _block_label(supports)),
                                 "ball": ("dot", SUPPORT_COLOR, "pin")}[kind])
     fixed = [color, stripe_color, CONTACT_COLOR, *STATE_COLORS]
 

@@ -644,9 +644,9 @@ class Result:
         supports = []
         for node, sup in rod.supports.items():
             pos, rot = np.all(sup.position), np.all(sup.rotation)
-            turned = np.any(sup.rotation_vector != 0) or np.any(sup.displacement != 0)
-            kind = ("turn" if turned and rot else "clamp" if pos and rot else
-                    "pin" if pos else "slide")
+            kind = ("turn" if np.any(sup.rotation_vector != 0) else
+                    "move" if np.any(sup.displacement != 0) else
+                    "clamp" if pos and rot else "pin" if pos else "slide")
             supports.append({"point": st.r[node], "kind": kind})
         loads = []
         for ld in getattr(rod, "point_loads", ()):

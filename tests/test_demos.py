@@ -204,3 +204,18 @@ def test_render_contact_states_colours_each_marker_by_its_state(tmp_path):
     assert cols[0] < cols[1] < cols[2]
     with pytest.raises(ValueError, match="one state per point"):
         render_contact_states(tmp_path / "x.png", r, R, 0.02, r[[5, 15]], states)
+
+
+def test_twisted_rod_reports_no_snap_when_the_torque_only_rises():
+    """The SMALL run of the twisted rod stays on the straight branch (the
+    torque rises linearly): no snap is reported."""
+    demo = load("twisted_rod")
+    rising = [dict(turns=0.2 * k, torque=0.5 * k, shortening=0.0, contacts=0) for k in range(4)]
+    ana = demo.analyse(rising, 5.0, 0.1)
+    assert ana["snapped"] is False
+    assert ana["snap_turns_before"] is None and ana["torque_after_snap"] is None
+    snapping = rising + [dict(turns=0.8, torque=0.9, shortening=0.3, contacts=0)]
+    ana = demo.analyse(snapping, 5.0, 0.1)
+    assert ana["snapped"] and ana["snap_turns_after"] == pytest.approx(0.8)
+    assert ana["torque_before_snap"] == pytest.approx(1.5)
+    assert [name for name, _ in demo.stages(rising)] == ["straight"]

@@ -41,7 +41,7 @@ FALLBACK = {}
 #: interesting state and that define no ``GALLERY``; default: the small
 #: settings.
 FALLBACK_GALLERY = {}
-THUMBNAIL_WIDTH = 360
+THUMBNAIL_WIDTH = 640
 
 
 def demo_names():

@@ -86,7 +86,7 @@ SMALL = dict(gammas=(0.3,), n_elements=16, turns=1.5, n_steps=6, window_size=(48
 #: machine; the gallery's coarser run, 3 turns in 12 steps each way on 16
 #: elements, shows the same snap, plectoneme and hysteresis in about 10 min)
 GALLERY = dict(gammas=(0.0, 0.3), n_elements=16, turns=3.0, n_steps=12, window_size=(720, 540),
-               gif_size=(360, 270))
+               gif_size=(480, 360))
 
 
 def main(out="output/plectoneme_friction", gammas=(0.0, 0.3), length=5.0, n_elements=24,
@@ -120,8 +120,8 @@ def main(out="output/plectoneme_friction", gammas=(0.0, 0.3), length=5.0, n_elem
         top = int(np.argmax([st.load_factor for st in res.steps]))
         png = os.path.join(out, "plectoneme_friction.png")
         res.render(png, step=top, window_size=window_size, camera=tw._camera(res.steps[top].r),
-                   title=f"gamma_T = {s['gamma_T']:g}, {turns:g} turns "
-                         "(contacts: stick green, slip orange)")
+                   contact_radius=0.8 * res.rod.contact.radius,
+                   title=f"plectoneme with friction γ_T = {s['gamma_T']:g}, {turns:g} turns")
         summary["renders"].append(png)
         if animate:
             summary["animations"] = [_animate(s, os.path.join(out, "plectoneme_friction.gif"),
@@ -141,10 +141,11 @@ def _animate(sol, path, size):
         configs.append((f["r"], f["R"]))
         points.append(res.contact_points(k))
         states.append(res.contact_states(k))
-        titles.append(f"{sol['records'][k]['turns']:.2f} turns")
+        titles.append(f"γ_T = {sol['gamma_T']:g}: {sol['records'][k]['turns']:.2f} turns")
     return render_animation(path, configs, res.rod.contact.radius, window_size=size,
                             titles=titles, contact_points=points, contact_states=states,
-                            camera=(0.35, -1.0, 0.6), fps=6)
+                            camera=(0.2, -1.0, 0.45), fps=6,
+                            supports=[{"point": configs[0][0][0], "kind": "clamp"}])
 
 
 def _printer(g):

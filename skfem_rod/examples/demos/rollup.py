@@ -46,7 +46,7 @@ def solve(phi=2 * np.pi, n_elements=16, n_steps=4):
 #: Settings for a quick run (tests, demos/gallery.py).
 SMALL = dict(n_elements=8, n_steps=4, window_size=(480, 360), gif_size=(240, 180))
 #: Settings of the gallery thumbnails (docs/img/gallery).
-GALLERY = dict(n_elements=16, n_steps=16, window_size=(720, 540), gif_size=(360, 270))
+GALLERY = dict(n_elements=16, n_steps=16, window_size=(720, 540), gif_size=(480, 360))
 
 
 def main(out="output/rollup", phi=2 * np.pi, n_elements=16, n_steps=8,
@@ -76,7 +76,7 @@ def main(out="output/rollup", phi=2 * np.pi, n_elements=16, n_steps=8,
     result.write_series(out, "rollup")
     png = result.render(os.path.join(out, "rollup.png"), camera="iso",
                         window_size=window_size,
-                        title=f"roll-up, end rotation {phi / np.pi:.2g} pi")
+                        title=f"roll-up by an end moment M = {phi / np.pi:.2g}π EI/L")
     files = [png]
     if animate:
         from skfem_rod.render import render_animation
@@ -84,8 +84,9 @@ def main(out="output/rollup", phi=2 * np.pi, n_elements=16, n_steps=8,
         files.append(render_animation(
             os.path.join(out, "rollup.gif"), [(f["r"], f["R"]) for f in samples],
             result.rod.section.radius, window_size=gif_size, fps=3, camera=(0, -0.6, 1),
-            titles=[f"end rotation {st.load_factor * phi / np.pi:.2f} pi"
-                    for st in result.steps]))
+            titles=[f"M = {st.load_factor * phi / np.pi:.2f}π EI/L" for st in result.steps],
+            reference=(samples[0]["r"], samples[0]["R"]),
+            supports=[{"point": samples[0]["r"][0], "kind": "clamp"}]))
     summary["renders"] = [png]
     summary["animations"] = files[1:]
     print(f"{result.message}; max nodal error {error:.2e} L; wall {wall:.2f} s")

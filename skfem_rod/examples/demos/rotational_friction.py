@@ -152,7 +152,7 @@ def main(out="output/rotational_friction", gamma_R=EPS, P=2.0, phi=0.06, n_eleme
         summary["plots"].append(_plot(rows, phi, os.path.join(out, "torque.png")))
         png = os.path.join(out, "rotational_friction.png")
         result.render(png, window_size=window_size,
-                      title=f"rotational friction: T / (gamma_R F_N) = "
+                      title=f"rotational friction: T / (γ_R F_N) = "
                             f"{summary['saturation_ratio']:.4f}")
         summary["renders"].append(png)
     return summary

@@ -130,7 +130,7 @@ def main(out="output/squeezed_loop", n_steps=16, render=True, verbose=True,
             r = sol["records"][k]
             path = os.path.join(out, f"squeezed_loop_{name}.png")
             res.render(path, step=k, radius=rod.contact.radius, camera="xy",
-                       window_size=window_size, contact_colors="#2ca02c",
+                       window_size=window_size,
                        title=f"{name}: load factor {r['load_factor']:.2f}, "
                              f"{r['contacts']} contact points")
             pngs.append(path)

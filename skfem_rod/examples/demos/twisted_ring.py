@@ -154,7 +154,7 @@ def main(out="output/twisted_ring", n_elements=24, turn=2 * np.pi, max_steps=300
     for name, k in (("fold", k_fold), ("end", -1)):
         png = os.path.join(out, f"twisted_ring_{name}.png")
         result.render(png, step=k, camera="iso", window_size=window_size,
-                      title=f"twisted ring, Theta = {theta[k] / np.pi:.3f} pi")
+                      title=f"twisted ring, Θ = {theta[k] / np.pi:.3f}π")
         renders.append(png)
     summary["plot"] = plot
     summary["renders"] = renders

@@ -240,26 +240,41 @@ def solve(length=8.0, n_elements=48, radius=0.05, turns=6.0, n_steps=60,
                                 B=B, T=T, GJ=GJ, EA=EA, penalty=rod.contact.penalty))
 
 
+#: Smallest torque drop (relative to the torque before it) reported as a snap.
+SNAP_DROP = 0.05
+
+
 def analyse(records, length, radius, plateau_from=None):
     """Snap and plateau figures from the per-step records.
 
-    The snap is the largest torque drop.  The plateau is taken over the
-    steps at or after ``plateau_from`` turns (default: one turn after the
-    snap): mean torque, its largest relative deviation, and the slope of
-    the end shortening per turn (least squares)."""
+    The snap is the largest torque drop, if the torque drops at all (by more
+    than ``SNAP_DROP`` of the torque before it); a path on which the torque
+    only rises has no snap (``snapped`` False, the ``snap_*`` entries None).
+    The plateau is taken over the steps at or after ``plateau_from`` turns
+    (default: one turn after the snap): mean torque, its largest relative
+    deviation, and the slope of the end shortening per turn (least
+    squares)."""
     tq = np.array([r["torque"] for r in records])
     n = np.array([r["turns"] for r in records])
     sh = np.array([r["shortening"] for r in records])
-    jump = int(np.argmin(np.diff(tq))) + 1                   # the snap: torque drops
+    drop = np.diff(tq)
+    jump = int(np.argmin(drop)) + 1 if drop.size else None   # the snap: torque drops
+    if jump is not None and not drop[jump - 1] < -SNAP_DROP * abs(tq[jump - 1]):
+        jump = None                                           # the torque only rises
     th = plectoneme_theory(radius)
     m = greenhill_factor(length)
-    out = dict(snap_turns_before=float(n[jump - 1]), snap_turns_after=float(n[jump]),
-               torque_before_snap=float(tq[jump - 1]), torque_after_snap=float(tq[jump]),
-               shortening_after_snap=float(sh[jump]),
+    snap = (dict(snap_turns_before=None, snap_turns_after=None, torque_before_snap=None,
+                 torque_after_snap=None, shortening_after_snap=None) if jump is None else
+            dict(snap_turns_before=float(n[jump - 1]), snap_turns_after=float(n[jump]),
+                 torque_before_snap=float(tq[jump - 1]), torque_after_snap=float(tq[jump]),
+                 shortening_after_snap=float(sh[jump])))
+    out = dict(snapped=jump is not None, **snap,
                greenhill_clamped_turns=2 * np.sqrt(B * T) * m * length / GJ / (2 * np.pi),
                greenhill_clamped_torque=2 * np.sqrt(B * T) * m,
                plectoneme_theta=th["theta"], plectoneme_torque=th["torque"],
                plectoneme_shortening_per_turn=th["shortening_per_turn"])
+    if jump is None and plateau_from is None:
+        return out
     start = n[jump] + 1.0 if plateau_from is None else plateau_from
     tail = n >= start - 1e-9
     if tail.sum() >= 3:
@@ -277,8 +292,8 @@ def stages(records):
     tq = np.array([r["torque"] for r in records])
     drop = np.diff(tq)
     last = len(records) - 1
-    if drop.size and drop.min() < 0:
-        jump = int(np.argmin(drop)) + 1
+    jump = int(np.argmin(drop)) + 1 if drop.size else 0
+    if drop.size and drop[jump - 1] < -SNAP_DROP * abs(tq[jump - 1]):
         out = [("straight", max(1, jump // 2)), ("buckled", jump - 1)]
     else:
         out = [("straight", last)]
@@ -322,9 +337,13 @@ def main(out="output/twisted_rod", length=16.0, n_elements=54, radius=0.1, turns
     rec = sol["records"]
     ana = analyse(rec, length, radius)
     say(f"{sol['message']}; wall {sol['wall_time_s']:.1f} s")
-    say(f"snap between {ana['snap_turns_before']:.3f} and {ana['snap_turns_after']:.3f} turns "
-        f"(clamped Greenhill: {ana['greenhill_clamped_turns']:.3f}); torque "
-        f"{ana['torque_before_snap']:.3f} -> {ana['torque_after_snap']:.3f} sqrt(BT)")
+    if ana["snapped"]:
+        say(f"snap between {ana['snap_turns_before']:.3f} and {ana['snap_turns_after']:.3f} "
+            f"turns (clamped Greenhill: {ana['greenhill_clamped_turns']:.3f}); torque "
+            f"{ana['torque_before_snap']:.3f} -> {ana['torque_after_snap']:.3f} sqrt(BT)")
+    else:
+        say(f"no snap up to {rec[-1]['turns']:.3f} turns: the torque only rises (clamped "
+            f"Greenhill: {ana['greenhill_clamped_turns']:.3f} turns)")
     if "plateau_torque" in ana:
         say(f"plateau from {ana['plateau_from']:.2f} turns ({ana['plateau_steps']} steps): "
             f"torque {ana['plateau_torque']:.4f} (max deviation {ana['plateau_deviation']:.1e}), "
@@ -365,7 +384,7 @@ def _plot(rec, ana, length, path):
     ax[0].set_ylabel(r"end torque $M_x / \sqrt{BT}$")
     ax[0].legend(fontsize=8)
     ax[1].plot(n, [r["shortening"] for r in rec], "o-", ms=3, label="FE")
-    j = np.searchsorted(n, ana["snap_turns_after"])
+    j = np.searchsorted(n, ana["snap_turns_after"]) if ana["snapped"] else n.size
     if j < n.size:
         s0 = rec[j]["shortening"]
         ax[1].plot(nn[nn >= n[j]], s0 + ana["plectoneme_shortening_per_turn"] * (nn[nn >= n[j]] - n[j]),
@@ -386,7 +405,7 @@ def _plot(rec, ana, length, path):
     return path
 
 
-def _camera(points, direction=(0.35, -1.0, 0.6), distance=1.9):
+def _camera(points, direction=(0.2, -1.0, 0.45), distance=1.9):
     """An oblique view (``[position, focal point, view up]``) that sees the
     rod's axis (x) from the side, so that neither tail hides behind a loop."""
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -403,8 +422,8 @@ def _render(sol, out, window_size=(800, 600)):
         path = os.path.join(out, f"twisted_rod_{name}.png")
         rec = sol["records"][k]
         res.render(path, step=k, radius=radius, camera=_camera(res.steps[k].r),
-                   contact_colors="#2ca02c", window_size=window_size,
-                   title=f"{name}: {rec['turns']:.2f} turns, torque {rec['torque']:.3f}, "
+                   window_size=window_size, contact_radius=0.8 * radius,
+                   title=f"{name}: {rec['turns']:.2f} turns, torque {rec['torque']:.3f} √(BT), "
                          f"{rec['contacts']} contact points")
         pngs.append(path)
     return pngs

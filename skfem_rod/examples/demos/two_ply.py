@@ -199,9 +199,9 @@ def main(out="output/two_ply", turns=2.0, n_steps=20, render=True, verbose=True,
         # tubes at half the contact radius, so that the contact points (on
         # the centrelines) show between the plies
         res.render(path, radius=0.5 * rod.contact.radius, camera=cam, window_size=window_size,
-                   contact_colors="#2ca02c", contact_radius=0.7 * rod.contact.radius,
+                   contact_radius=0.7 * rod.contact.radius,
                    title=f"two-ply: {r['turns']:.1f} turns, {r['contacts']} contact points, "
-                         f"ply angle {r.get('ply_angle_deg', float('nan')):.1f} deg\n"
+                         f"ply angle {r.get('ply_angle_deg', float('nan')):.1f}° "
                          "(tubes at half the contact radius)")
         pngs.append(path)
     return dict(sol, renders=pngs)
