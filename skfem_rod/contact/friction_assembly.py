@@ -65,6 +65,20 @@ class FrictionParams:
     gamma_R : rotational (circumferential) coefficient, a length:
         ``|f_R| <= gamma_R f_N``.
     mu_T, mu_R : compliances (eq. 4.2b-c; increments, not rates).
+    rotational : what the rotational law acts on (docs/friction.md F7):
+        ``"twist"`` (default): the relative rotation increment about the
+        slave's tangent ``t`` (the paper's "around d_3", eq. 3.9 projected),
+        a pure couple on the sections; the tangential law acts on the whole
+        material slip (isotropic Coulomb), so a twist slides the surface and
+        is resisted by ``(gamma_R + rho gamma_T) f_N``.
+        ``"circumferential"``: the material slip is split, axial sliding to
+        the tangential law, circumferential sliding (as an angle about
+        ``t``) to the rotational law: no sliding is counted twice, a twist is
+        resisted by ``gamma_R f_N`` alone, but lateral sliding of parallel
+        strands is then rotational friction.
+        ``"pivot"``: the relative rotation about the normal ``N`` (spinning
+        friction of the contact patch), a pure couple; invisible to the
+        tangential slip.
     push_forward : the carried multipliers ``lam_T``, ``lam_R`` are
         expressed at the last converged state and are pushed forward with
         the slave section's incremental rotation (objective for rotations
@@ -78,6 +92,12 @@ class FrictionParams:
     mu_T: float = 1.0
     mu_R: float = 1.0
     push_forward: bool = False
+    rotational: str = "twist"
+
+    def __post_init__(self):
+        if self.rotational not in ("twist", "circumferential", "pivot"):
+            raise ValueError("rotational must be 'twist', 'circumferential' or 'pivot', "
+                             f"got {self.rotational!r}")
 
 
 @dataclass
@@ -85,8 +105,8 @@ class FrictionOutput:
     """Per active pair (``f_N > 0``) friction figures of one evaluation."""
     index: np.ndarray        # (m,) index into the Pairs of the evaluation
     slave: np.ndarray        # (m,) global slave point index
-    slip_T: np.ndarray       # (m, 3) axial slip increment t (t . g)
-    slip_R: np.ndarray       # (m, 3) circumferential slip as a rotation t (b . g) / rho
+    slip_T: np.ndarray       # (m, 3) tangential slip increment (F6, F7)
+    slip_R: np.ndarray       # (m, 3) rotational slip increment (F7)
     force_T: np.ndarray      # (m, 3) f_T (on the master)
     force_R: np.ndarray      # (m, 3) f_R (couple on the master)
     state_T: np.ndarray      # (m,) FrictionState
@@ -101,9 +121,13 @@ class _Forces(NamedTuple):
     F: np.ndarray            # (m, 3) force at the contact point (on the master)
     fT: np.ndarray
     fR: np.ndarray
+    couple: np.ndarray       # (m, 3) pure couple on the sections (on the master), or 0
+    gT: np.ndarray           # (m, 3) the slips
+    gR: np.ndarray
     resT: law.FrictionResult
     resR: law.FrictionResult
     DF: np.ndarray           # (m, 3, NC) or None
+    Dcouple: np.ndarray      # (m, 3, NC), 0 or None
 
 
 def _outer(a, c):
@@ -111,45 +135,67 @@ def _outer(a, c):
 
 
 def _forces(kin, lam_T, lam_R, fN, dfN, p, linearize):
-    """The two laws on the split slip (F7) and the force ``F`` at the
-    contact point, with its reduced linearization ``DF``."""
+    """The two laws on their slips (F6, F7): the force ``F`` at the contact
+    point and the couple on the sections, with their reduced
+    linearizations."""
     if p.push_forward:
         LT, DLT = pushed(kin, lam_T, linearize)
         LR, DLR = pushed(kin, lam_R, linearize)
     else:
         LT, LR, DLT, DLR = lam_T, lam_R, 0.0, 0.0
-    t, b, g, rho = kin.t, kin.b, kin.g, kin.rho
+    split = p.rotational == "circumferential"
+    t, b, g, rho, N = kin.t, kin.b, kin.g, kin.rho, kin.N
     vT = g + p.mu_T * LT
-    AT = kin.axial(vT)
-    bg = np.sum(b * g, axis=1)
-    cR = bg / rho + p.mu_R * np.sum(t * LR, axis=1)
+    if split:
+        AT, gT = kin.axial(vT), kin.axial(g)
+        bg = np.sum(b * g, axis=1)
+        axis, cR = t, bg / rho + p.mu_R * np.sum(t * LR, axis=1)
+        gR = t * (bg / rho)[:, None]
+    else:
+        AT = vT - N * np.sum(N * vT, axis=1)[:, None]
+        gT = g - N * np.sum(N * g, axis=1)[:, None]
+        axis = t if p.rotational == "twist" else N
+        vR = kin.rel + p.mu_R * LR
+        cR = np.sum(axis * vR, axis=1)
+        gR = axis * np.sum(axis * kin.rel, axis=1)[:, None]
     zero = np.zeros_like(AT)
     resT = law.friction_force(AT, zero, p.mu_T, p.gamma_T, fN)
-    resR = law.friction_force(t * cR[:, None], zero, p.mu_R, p.gamma_R, fN)
+    resR = law.friction_force(axis * cR[:, None], zero, p.mu_R, p.gamma_R, fN)
     fT, fR = resT.force, resR.force
-    fRs = np.sum(t * fR, axis=1)
-    F = fT + (fRs / rho)[:, None] * b
+    fRs = np.sum(axis * fR, axis=1)
+    F = fT + (fRs / rho)[:, None] * b if split else fT
+    couple = zero if split else fR
     if not linearize:
-        return _Forces(F, fT, fR, resT, resR, None)
+        return _Forces(F, fT, fR, couple, gT, gR, resT, resR, None, None)
+    dot = lambda a, D: np.einsum("mc,mcj->mj", a, D)               # noqa: E731
     DfN = -dfN[:, None] * kin.NX
     Drho = kin.Drho
     DvT = kin.Dg + p.mu_T * DLT
-    DAT = (np.sum(t * vT, axis=1)[:, None, None] * kin.Dt
-           + _outer(t, np.einsum("mc,mcj->mj", vT, kin.Dt) + np.einsum("mc,mcj->mj", t, DvT)))
+    if split:
+        DAT = np.sum(t * vT, axis=1)[:, None, None] * kin.Dt + _outer(t, dot(vT, kin.Dt)
+                                                                      + dot(t, DvT))
+        DcR = ((dot(g, kin.Db) + dot(b, kin.Dg)) / rho[:, None]
+               - (bg / rho ** 2)[:, None] * Drho
+               + p.mu_R * (dot(LR, kin.Dt) + (dot(t, DLR) if p.push_forward else 0.0)))
+        Daxis = kin.Dt
+    else:
+        DAT = (DvT - np.sum(N * vT, axis=1)[:, None, None] * kin.DN
+               - _outer(N, dot(vT, kin.DN) + dot(N, DvT)))
+        Daxis = kin.Dt if p.rotational == "twist" else kin.DN
+        DvR = kin.Drel + p.mu_R * DLR
+        DcR = dot(vR, Daxis) + dot(axis, DvR)
     DfT = resT.dforce_dslip @ DAT + _outer(resT.dforce_dnormal, DfN)
-    DcR = ((np.einsum("mc,mcj->mj", g, kin.Db) + np.einsum("mc,mcj->mj", b, kin.Dg)) / rho[:, None]
-           - (bg / rho ** 2)[:, None] * Drho
-           + p.mu_R * (np.einsum("mc,mcj->mj", LR, kin.Dt)
-                       + (np.einsum("mc,mcj->mj", t, DLR) if p.push_forward else 0.0)))
-    DAR = cR[:, None, None] * kin.Dt + _outer(t, DcR)
+    DAR = cR[:, None, None] * Daxis + _outer(axis, DcR)
     DfR = resR.dforce_dslip @ DAR + _outer(resR.dforce_dnormal, DfN)
-    DfRs = np.einsum("mc,mcj->mj", fR, kin.Dt) + np.einsum("mc,mcj->mj", t, DfR)
-    DF = (DfT + _outer(b, DfRs / rho[:, None] - (fRs / rho ** 2)[:, None] * Drho)
-          + (fRs / rho)[:, None, None] * kin.Db)
-    return _Forces(F, fT, fR, resT, resR, DF)
+    if split:
+        DfRs = dot(fR, kin.Dt) + dot(t, DfR)
+        DF = (DfT + _outer(b, DfRs / rho[:, None] - (fRs / rho ** 2)[:, None] * Drho)
+              + (fRs / rho)[:, None, None] * kin.Db)
+        return _Forces(F, fT, fR, couple, gT, gR, resT, resR, DF, 0.0)
+    return _Forces(F, fT, fR, couple, gT, gR, resT, resR, DfT, DfR)
 
 
-def _residual(n, kin, w, F):
+def _residual(n, kin, w, F, couple):
     """``w F . [delta x - delta y - rho (delta th_s + delta th_m) x N]``:
     on the slave nodes ``N_s (F; -rho q)``, on the master's
     ``N_m (-F; -rho q)``, ``q = N x F``."""
@@ -159,13 +205,14 @@ def _residual(n, kin, w, F):
     loc = np.empty((m, 8, 6))
     loc[:, :4, :3] = kin.Ns[:, :, None] * wF[:, None, :]
     loc[:, 4:, :3] = kin.Nm[:, :, None] * (-wF)[:, None, :]
-    loc[:, :4, 3:] = kin.Ns[:, :, None] * (-wq)[:, None, :]
-    loc[:, 4:, 3:] = kin.Nm[:, :, None] * (-wq)[:, None, :]
+    wc = w[:, None] * couple                      # + w f_R . (delta th_s - delta th_m)
+    loc[:, :4, 3:] = kin.Ns[:, :, None] * (wc - wq)[:, None, :]
+    loc[:, 4:, 3:] = kin.Nm[:, :, None] * (-wc - wq)[:, None, :]
     dofs = 6 * kin.nodes[:, :, None] + np.arange(6)
     return np.bincount(dofs.ravel(), weights=loc.ravel(), minlength=n)
 
 
-def _core(kin, w, F, DF):
+def _core(kin, w, F, DF, couple, Dcouple):
     """The reduced core ``C`` ``(m, row mode, row dof, NC)`` of the tangent:
     ``w [Vx^T DF - rho Vl^T Dq - (Vl^T q) Drho^T]`` plus the moving master
     shape functions (row mode ``N'_m`` times ``Delta xi``)."""
@@ -178,10 +225,11 @@ def _core(kin, w, F, DF):
     C = np.zeros((m, NM, 6, NC))       # no row has the mode N'_s
     C[:, 0, :3] = E1
     C[:, 1, :3] = -E1
-    C[:, 0, 3:] = E2
-    C[:, 1, 3:] = E2
+    E3 = wc * Dcouple
+    C[:, 0, 3:] = E2 + E3
+    C[:, 1, 3:] = E2 - E3
     C[:, 2, :3] = -_outer(w[:, None] * F, kin.Xi)
-    C[:, 2, 3:] = -_outer((w * kin.rho)[:, None] * q, kin.Xi)
+    C[:, 2, 3:] = -_outer(w[:, None] * (kin.rho[:, None] * q + couple), kin.Xi)
     return C
 
 
@@ -333,14 +381,12 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     sl, w, fN, dfN = pairs.slave[idx], pairs.weight[idx], fN_all[idx], dfN_all[idx]
     kin = slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, tangent)
     fo = _forces(kin, lam_T[sl], lam_R[sl], fN, dfN, p, tangent)
-    force = _residual(n, kin, w, fo.F)
+    force = _residual(n, kin, w, fo.F, fo.couple)
     back = (lambda f: pulled_back(kin, f)) if p.push_forward else (lambda f: f)
-    out = FrictionOutput(idx, sl, kin.axial(kin.g), kin.t * (np.sum(kin.b * kin.g, axis=1)
-                                                          / kin.rho)[:, None],
-                         fo.fT, fo.fR, fo.resT.state, fo.resR.state, fN,
+    out = FrictionOutput(idx, sl, fo.gT, fo.gR, fo.fT, fo.fR, fo.resT.state, fo.resR.state, fN,
                          back(fo.fT), back(fo.fR), kin.t)
     if not tangent:
         return force, None, out
-    C = _core(kin, w, fo.F, fo.DF)
+    C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
     K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal)
     return force, K, out

@@ -89,6 +89,7 @@ class Slip:
     b: np.ndarray         # (m, 3) N x t
     g: np.ndarray         # (m, 3) material slip (F6)
     Lam_s: np.ndarray     # (m, 3, 3) incremental rotation of the slave section
+    rel: np.ndarray       # (m, 3) phi_s - phi_m: relative rotation increment (eq. 3.9, F5)
     Xi: np.ndarray = None     # (m, NC) Delta xi
     NX: np.ndarray = None     # (m, NC) N . delta(x - y)
     DN: np.ndarray = None     # (m, 3, NC)
@@ -96,6 +97,7 @@ class Slip:
     Dt: np.ndarray = None     # (m, 3, NC)
     Db: np.ndarray = None     # (m, 3, NC)
     Dw_s: np.ndarray = None   # (m, 3, NC) spin of Lam_s
+    Drel: np.ndarray = None   # (m, 3, NC)
 
     @property
     def Drho(self):
@@ -135,7 +137,7 @@ def slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, linearize=True):
     nv = np.maximum(np.linalg.norm(v, axis=1), 1e-300)
     t = v / nv[:, None]
     b = np.cross(N, t)
-    out = Slip(nodes, Ns, Nm, dNm, dNs, phi, N, l, rho, t, b, g, Lam_s)
+    out = Slip(nodes, Ns, Nm, dNm, dNs, phi, N, l, rho, t, b, g, Lam_s, phi_s - phi_m)
     if not linearize:
         return out
     m = idx.size
@@ -153,7 +155,8 @@ def slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, linearize=True):
     DN = P @ (XREL - outer(y1, Xi)) / l[:, None, None]
     NX = N @ XREL                                          # y' . N = 0 where Xi != 0
     Dw_s = tangent_op(phi_s) @ PHIS
-    Dw_m = tangent_op(phi_m) @ (PHIM + outer(_at(dNm, phi, mn), Xi))
+    Phim = PHIM + outer(_at(dNm, phi, mn), Xi)
+    Dw_m = tangent_op(phi_m) @ Phim
     Nh = hat(N)
     Da_s = np.swapaxes(Lam_s, 1, 2) @ (Nh @ Dw_s + DN)
     Da_m = np.swapaxes(Lam_m, 1, 2) @ (Nh @ Dw_m + DN)
@@ -164,6 +167,7 @@ def slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, linearize=True):
     Dt = (np.eye(3) - outer(t, t)) @ Dv / nv[:, None, None]
     Db = -hat(t) @ DN + Nh @ Dt
     out.Xi, out.NX, out.DN, out.Dg, out.Dt, out.Db, out.Dw_s = Xi, NX, DN, Dg, Dt, Db, Dw_s
+    out.Drel = PHIS - Phim
     return out
 
 
