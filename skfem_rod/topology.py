@@ -99,6 +99,9 @@ _TWO_PI = 2.0 * np.pi
 _BLOCK = 1 << 15
 # Far-field size of the closure, in units of the rod's bounding-box diagonal.
 _FAR = 100.0
+# Closure far side: largest |cos| between it and the detour direction ``u``
+# before ``u`` is turned normal to it (the rectangle would nearly fold back).
+_FOLD = 0.5
 # Default ribbon width of :func:`link`, in units of the shortest edge.
 _EPS_REL = 1e-3
 
@@ -523,11 +526,18 @@ def closure(points, d1, extension=None, offset=None, direction=None,
     Fuller's theorem it can only change through its tangent indicatrix):
     the finite closure already gives the limiting value, exactly.
 
+    End tangents pointing back toward each other (``t_start . t_end < 0``:
+    a hairpin, a two-ply) send both extensions the same way; without a
+    ``direction`` their far ends ``Q1`` and ``Q4`` are then joined
+    directly (a detour through ``u`` would fold back on itself, a cusp).
+    No corner of the closure reverses, whatever the end tangents, and a
+    planar rod closes into a planar loop: a hairpin at rest has no writhe.
+
     ``d1`` is parallel transported from the rod's end around the closure
     back to the start.  If it then differs from the rod's ``d1`` at the
     start by an angle ``phi`` in ``(-pi, pi]`` (end frames not an integer
     number of turns apart), the rotation ``phi`` is spread evenly over the
-    five closure edges, and ``phi / 2pi`` is reported as
+    closure edges, and ``phi / 2pi`` is reported as
     :attr:`Closure.twist`.
 
     Parameters
@@ -599,26 +609,47 @@ def closure(points, d1, extension=None, offset=None, direction=None,
 
     q1 = p[-1] + L * te
     q4 = p[0] - L * ts
-    q = np.array([q1, q1 + D * u, q4 + D * u, q4])
-    # tangents of the five closure edges x_{n-1}->Q1->Q2->Q3->Q4->x_0
+    if direction is None and float(np.dot(ts, te)) < 0:
+        # end tangents pointing back toward each other (a hairpin, a
+        # two-ply): both extensions run the same way, and a detour through
+        # u would fold back on itself (a cusp).  Join their far ends
+        # directly: the corners turn by at most 135 degrees, and a planar
+        # rod closes into a planar loop (no writhe).
+        q = np.array([q1, q4])
+    else:
+        if direction is None:
+            # the far side runs along q4 - q1; should that be nearly along u
+            # (short extensions), take u normal to the axis and to it: every
+            # corner then turns by 90 degrees
+            r = q4 - q1
+            nr = np.linalg.norm(r)
+            if nr > 0 and abs(np.dot(r, u)) > _FOLD * nr:
+                w = np.cross(axis, r)
+                u = w / np.linalg.norm(w)
+        q = np.array([q1, q1 + D * u, q4 + D * u, q4])
+    m = len(q) + 1                      # closure edges x_{n-1} -> q ... -> x_0
     tc = _unit_rows(np.diff(np.vstack([p[-1], q, p[0]]), axis=0))
-    # parallel transport of the end normal around the closure (5 steps)
-    v = np.empty((5, 3))
+    if np.any(np.sum(tc[:-1] * tc[1:], axis=1) < -1 + 1e-9) or \
+            np.dot(t[-1], tc[0]) < -1 + 1e-9 or np.dot(tc[-1], t[0]) < -1 + 1e-9:
+        raise ValueError("the closure folds back on itself (the rod's ends point at each "
+                         "other along one line); give direction=... for the closure")
+    # parallel transport of the end normal around the closure
+    v = np.empty((m, 3))
     v[0] = d[-1] - np.dot(d[-1], tc[0]) * tc[0]
     if np.linalg.norm(v[0]) < 1e-10:
         raise ValueError("d1 is parallel to the end tangent")
     v[0] /= np.linalg.norm(v[0])
-    for k in range(1, 5):
+    for k in range(1, m):
         v[k] = _transport(v[k - 1], tc[k - 1], tc[k])
-    w = d[0] - np.dot(d[0], tc[4]) * tc[4]
+    w = d[0] - np.dot(d[0], tc[-1]) * tc[-1]
     if np.linalg.norm(w) < 1e-10:
         raise ValueError("d1 is parallel to the start tangent")
-    phi = float(_signed_angle(v[4], w, tc[4]))
+    phi = float(_signed_angle(v[-1], w, tc[-1]))
     # closure normals: half-transported to the vertex bisector (no vertex
     # twist), then turned by an even share of phi
     bis = _unit_rows(tc[:-1] + tc[1:])
     dq = _transport(v[:-1], tc[:-1], bis)
-    dq = _rotate(dq, bis, phi * np.arange(1, 5)[:, None] / 5.0)
+    dq = _rotate(dq, bis, phi * np.arange(1, m)[:, None] / m)
     return Closure(points=np.vstack([p, q]), d1=np.vstack([d, dq]),
                    n_rod=len(p), twist=phi / _TWO_PI)
 
