@@ -556,12 +556,19 @@ def _block_label(supports):
     return " / ".join(names)
 
 
-def _load_meshes(pv, loads, length, start_offset):
+def _load_meshes(pv, loads, length, start_offset, centre=None):
     """Arrows of length ``length`` for ``loads`` (dicts ``point``,
-    ``vector``, ``kind``): forces single, moments double headed.  The arrow
-    starts ``start_offset`` away from the point (outside the tube)."""
+    ``vector``, ``kind``): forces single, moments double headed, kept
+    ``start_offset`` away from the point (outside the tube).  A force that
+    points away from ``centre`` (the middle of the rod: a pull) starts at
+    its point; one that points towards it (a push) ends at its point."""
     forces, moments = [], []
-    for ld in loads or ():
+    loads = list(loads or ())
+    if len(loads) > 4:
+        # a load spread over many nodes: shorter arrows, at most 10 of them
+        length = 0.4 * length
+        loads = loads[::-(-len(loads) // 10)]
+    for ld in loads:
         p = _as_points("loads point", ld["point"])[0]
         v = np.asarray(ld["vector"], float)
         nv = np.linalg.norm(v)
@@ -569,6 +576,9 @@ def _load_meshes(pv, loads, length, start_offset):
             continue
         d = v / nv
         start = p + start_offset * d
+        if (ld.get("kind", "force") != "moment" and centre is not None
+                and d @ (p - centre) < 0):                     # a push: tip at the point
+            start = p - (start_offset + length) * d
         if ld.get("kind", "force") == "moment":
             arrow = pv.Arrow(start=start, direction=d, scale=length, tip_length=0.22,
                              tip_radius=0.07, shaft_radius=0.025)
@@ -737,7 +747,7 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
         tube.point_data["cap"] == 1, np.pi, np.abs(tube.point_data["phi"]))
     fit_pts = [tube.points]
     entries = []
-    size = 5 * r.max()
+    size = 3.5 * r.max()                  # edge of a support block
 
     with quiet_vtk():
         pl = pv.Plotter(off_screen=True, window_size=(sw, sh), lighting="three lights")
@@ -784,7 +794,8 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
 
             if loads:
                 diag = np.linalg.norm(np.ptp(np.vstack(fit_pts), axis=0))
-                forces, moments = _load_meshes(pv, loads, 0.2 * diag, 1.5 * size / 2)
+                forces, moments = _load_meshes(pv, loads, 0.2 * diag, 1.5 * size / 2,
+                                               centre=points.mean(axis=0))
                 if forces is not None:
                     pl.add_mesh(forces, color=GLYPH_COLOR, smooth_shading=True)
                     fit_pts.append(forces.points)
