@@ -1193,7 +1193,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
         ref_pts, ref_frames = validate_points_frames(*reference)
         statics.append(("ghost", tube_mesh(ref_pts, ref_frames,
                                            _radii(rmax, len(ref_pts)), n_around=24)))
-    blocks, balls = _support_meshes(pv, supports, 5 * rmax)
+    blocks, balls = _support_meshes(pv, supports, 3.5 * rmax)
     statics += [(kind, m) for kind, m in (("block", blocks), ("ball", balls)) if m is not None]
 
     all_pts = np.vstack([t.points for t in tubes] + [m.points for m in markers if m is not None]
