@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["sweep", "sweep_points", "run_point", "open_sweep", "SweepPoint"]
+__all__ = ["sweep", "sweep_points", "run_point", "open_sweep", "local_cluster", "SweepPoint"]
 
 log = logging.getLogger("skfem_rod.sweep")
 
@@ -639,23 +639,38 @@ def sweep_directory(scene, out=None):
                                                                 "sweep")
 
 
+def local_cluster(n_workers):
+    """The in-process cluster of a sweep: ``n_workers`` worker processes of
+    one thread each, the dashboard on a free port.
+
+    Dask's workers trim the heap at 64 KiB (``MALLOC_TRIM_THRESHOLD_``),
+    which also makes glibc map every large array anew: the solver ran 1.8x
+    slower on a worker than in a plain loop.  A solve holds little memory,
+    so the workers keep glibc's adaptive default.
+
+    Examples
+    --------
+    >>> from dask.distributed import Client           # doctest: +SKIP
+    >>> with local_cluster(2) as cluster, Client(cluster) as client:   # doctest: +SKIP
+    ...     ds = sweep("scene.toml", scheduler=client)
+    """
+    import dask
+    from dask.distributed import LocalCluster
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
+                          None}):
+        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                            dashboard_address=":0")
+
+
 def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, on_step, done, total):
     """Run the points on Dask, writing each as it finishes; returns the
     Datasets of the points lost with their workers (not written: a re-run
     tries them again)."""
-    import dask
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import Client, as_completed
     from distributed.scheduler import KilledWorker
     cluster = None
     if scheduler is None:
-        n = n_workers or min(os.cpu_count() or 1, len(todo))
-        # Dask's workers trim the heap at 64 KiB (MALLOC_TRIM_THRESHOLD_), which
-        # also makes glibc mmap every large array anew: the solver runs 1.8x
-        # slower.  A solve holds little memory: keep glibc's adaptive default.
-        with dask.config.set({"distributed.nanny.pre-spawn-environ."
-                              "MALLOC_TRIM_THRESHOLD_": None}):
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+        cluster = local_cluster(n_workers or min(os.cpu_count() or 1, len(todo)))
         client = Client(cluster)
     elif isinstance(scheduler, str):
         client = Client(scheduler)

@@ -231,9 +231,8 @@ def test_sweep_killed_half_way_resumes(tmp_path):
 
 @pytest.fixture(scope="module")
 def client():
-    from dask.distributed import Client, LocalCluster
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as c:
+    from dask.distributed import Client
+    with sweeps.local_cluster(2) as cluster, Client(cluster) as c:
         yield c
 
 
