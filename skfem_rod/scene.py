@@ -25,6 +25,7 @@ Traceback (most recent call last):
 skfem_rod.scene.SceneError: 4 problems in the scene:
   - rod.n_element is not a known key; did you mean "n_elements"? ...
 """
+import contextlib
 import difflib
 import json
 import math
@@ -42,6 +43,8 @@ __all__ = ["Scene", "SceneError", "load_scene", "read_toml"]
 MAX_ELEMENTS = 100_000
 MAX_QUAD = 10
 MAX_POINTS = 10_000
+#: largest scene file read
+MAX_FILE_BYTES = 2**20
 CAMERAS = ("iso", "xy", "xz", "yz", "yx", "zx", "zy")
 
 
@@ -175,11 +178,20 @@ class Text:
 
 
 class Basename:
-    expected = "a file name stem (a non-empty string without / or \\)"
+    expected = "a file name stem (a non-empty string without /, \\ or NUL)"
 
     def __call__(self, v):
         if not (isinstance(v, str) and v.strip()) or v in (".", "..") \
-                or any(c in v for c in "/\\" + os.sep):
+                or any(c in v for c in "/\\\0" + os.sep):
+            raise _Bad()
+        return v
+
+
+class Directory:
+    expected = "a directory path (a non-empty string without NUL)"
+
+    def __call__(self, v):
+        if not (isinstance(v, str) and v.strip()) or "\0" in v:
             raise _Bad()
         return v
 
@@ -493,7 +505,7 @@ def _solver_keys():
 SOLVER = _solver_keys()
 
 OUTPUT = {
-    "directory": Key(Text(), None, "output directory (default output/<scene name>)"),
+    "directory": Key(Directory(), None, "output directory (default output/<scene name>)"),
     "basename": Key(Basename(), None, "file name stem (default: the scene name)"),
     "json": Key(Boolean(), True, "JSON summary <basename>.json"),
     "vtu": Key(Boolean(), False, "VTU per step + <basename>.pvd/.xdmf"),
@@ -901,6 +913,12 @@ class Scene:
         return os.fspath(out) if out is not None else (
             o.get("directory") or os.path.join("output", self.name))
 
+    def open_output(self, out=None):
+        """An :class:`OutputStream` for a run: the output directory checked
+        and cleared of an earlier run's files now, before the solve (OSError
+        or ValueError if it cannot be used)."""
+        return OutputStream(self, out)
+
     def write(self, result, out=None, wall_time=None):
         """Write the outputs of ``result`` ([output], or its defaults when
         ``out`` is given without an [output] table); returns the paths.  A
@@ -931,6 +949,137 @@ class Scene:
             data["files"] = [os.path.basename(p) for p in written + [path]]
             written.append(write_json(path, data))
         return written
+
+
+class OutputStream:
+    """The outputs of a run, written while it solves: the output directory
+    is checked (created, writable) before the solve and cleared of the files
+    of an earlier run of the same basename; with ``vtu`` on, every converged
+    step is written as it arrives (:meth:`step`, the solver's
+    ``callback(result, k)``) and the ``.pvd`` rewritten to list exactly the
+    steps written so far, so a run interrupted at any point leaves a
+    readable series of the steps it finished.  :meth:`finish` writes the
+    rest (:meth:`Scene.write`).  Every file is written atomically.
+
+    Made by :meth:`Scene.open_output`.
+    """
+
+    def __init__(self, scene, out=None):
+        self.scene, self.out = scene, out
+        self.result = None                 # the result being built (last callback)
+        o = scene.output
+        if o is None and out is not None:
+            o = {k: key.default for k, key in OUTPUT.items()}
+        self.options = o
+        self.active = bool(o) and bool(o["json"] or o["vtu"] or o["render"])
+        self.directory = scene.output_directory(out)
+        self.base = (o or {}).get("basename") or scene.name
+        self.entries = []                  # (time, file name) of the VTUs written
+        if self.active:
+            self._prepare()
+
+    def _stale(self, name):
+        import re
+        b = re.escape(self.base)
+        return bool(re.fullmatch(rf"{b}_\d+\.vtu|{b}\.(pvd|xdmf|json|png)"
+                                 rf"|\.{b}(_\d+\.vtu|\.(pvd|xdmf|json|png))\..*\.tmp", name))
+
+    def _prepare(self):
+        """Create the directory, check that it takes files, remove the
+        files of an earlier run (OSError if any of it fails)."""
+        import tempfile
+        from .export import check_path
+        d = check_path("output directory", self.directory)
+        os.makedirs(d, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".skfem-rod-probe.", dir=d)
+        os.close(fd)
+        os.remove(probe)
+        for name in os.listdir(d):
+            if self._stale(name):
+                os.remove(os.path.join(d, name))
+
+    def step(self, result, k):
+        """Write step ``k`` of ``result`` (the solver's callback)."""
+        self.result = result
+        if not (self.active and self.options["vtu"]):
+            return
+        from .export import write_vtu
+        st = result.steps[k]
+        f, pdata = result.point_data(k, self.options["per_element"])
+        name = f"{self.base}_{k:04d}.vtu"
+        write_vtu(os.path.join(self.directory, name), f["r"], f["R"], pdata,
+                  field_data={"TimeValue": st.time})
+        self.entries = [e for e in self.entries if e[1] != name] + [(st.time, name)]
+        self._write_pvd()
+
+    def _write_pvd(self):
+        from xml.etree import ElementTree as ET
+        root = ET.Element("VTKFile", type="Collection", version="0.1",
+                          byte_order="LittleEndian")
+        coll = ET.SubElement(root, "Collection")
+        for t, name in self.entries:
+            ET.SubElement(coll, "DataSet", timestep=repr(float(t)), group="", part="0",
+                          file=name)
+        ET.indent(root)
+        _atomic_write(os.path.join(self.directory, self.base + ".pvd"),
+                      b'<?xml version="1.0"?>\n' + ET.tostring(root) + b"\n")
+
+    def finish(self, result, wall_time=None):
+        """Write the complete outputs of ``result`` (:meth:`Scene.write`)
+        and remove streamed files the final series does not list."""
+        if not self.active:
+            return []
+        written = self.scene.write(result, out=self.out, wall_time=wall_time)
+        keep = {os.path.basename(p) for p in written}
+        for _, name in self.entries:
+            if name not in keep:
+                with contextlib.suppress(OSError):
+                    os.remove(os.path.join(self.directory, name))
+        return written
+
+    def interrupted(self, message, wall_time=None):
+        """After an interrupt: the JSON summary of the steps kept so far
+        (the VTU series is already on disk); returns the paths written."""
+        if not self.active or self.result is None:
+            return []
+        self.result.finish(False, message)
+        if self.options["vtu"]:            # steps kept but not yet on disk
+            done = {name for _, name in self.entries}
+            for k in range(len(self.result.steps)):
+                if f"{self.base}_{k:04d}.vtu" not in done:
+                    self.step(self.result, k)
+        written = [os.path.join(self.directory, name) for _, name in self.entries]
+        if self.entries:                   # a VTU may have landed after the last .pvd
+            self._write_pvd()
+            written.append(os.path.join(self.directory, self.base + ".pvd"))
+        if self.options["json"]:
+            from .export import write_json
+            path = os.path.join(self.directory, self.base + ".json")
+            data = summary(self.scene, self.result, wall_time)
+            data["files"] = [os.path.basename(p) for p in written + [path]]
+            written.append(write_json(path, data))
+        return written
+
+
+def _atomic_write(path, data):
+    """Write bytes to ``path`` atomically (a temporary file in the same
+    directory, then ``os.replace``; the temporary file is removed on any
+    exception, an interrupt included)."""
+    import tempfile
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp",
+                               dir=d)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        raise
 
 
 def step_figures(step, index):
@@ -990,7 +1139,10 @@ def read_toml(path):
     except ModuleNotFoundError:                  # Python 3.10
         import tomli as tomllib
     with open(path, "rb") as f:
-        raw = f.read()
+        raw = f.read(MAX_FILE_BYTES + 1)          # /dev/zero must not fill the memory
+    if len(raw) > MAX_FILE_BYTES:
+        raise SceneError([f"the file is larger than {MAX_FILE_BYTES // 2**20} MiB, the "
+                          "largest scene read (a scene is a short text file)"])
     try:
         return tomllib.loads(raw.decode("utf-8"))
     except UnicodeDecodeError as err:
