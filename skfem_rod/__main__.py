@@ -19,6 +19,7 @@ are written, and where it stopped is printed).  The scene format is in
 docs/scenes.md.
 """
 import argparse
+import contextlib
 import importlib.util
 import inspect
 import logging
@@ -109,21 +110,45 @@ def cmd_run(args):
              f"{d['rod']['n_elements']} elements, {len(d['support'])} support(s), "
              f"{len(d['load'])} load(s), contact "
              f"{'on' if (d.get('contact') or {}).get('enabled') else 'off'}")
+    directory = scene.output_directory(args.out)
+    try:        # before the solve: a directory that takes no files loses nothing
+        stream = scene.open_output(args.out)
+    except (OSError, ValueError) as err:
+        _err(f"cannot write to the output directory {directory!r}: "
+             f"{getattr(err, 'strerror', None) or err}")
+        return BAD_INPUT
     t0 = time.perf_counter()
     # a line per load step: INFO on a terminal, DEBUG (shown with -v) otherwise
     step_level = logging.INFO if sys.stdout.isatty() else logging.DEBUG
-    live = (lambda res, k: log.log(step_level, progress_line(res.steps[k], k))) \
-        if log.isEnabledFor(step_level) else None
-    result = scene.solve(callback=live)
-    wall = time.perf_counter() - t0
+    talk = log.isEnabledFor(step_level)
+
+    def on_step(res, k):                 # each converged step: to disk, then a line
+        stream.step(res, k)
+        if talk:
+            log.log(step_level, progress_line(res.steps[k], k))
+
     try:
-        written = scene.write(result, out=args.out, wall_time=wall)
+        with _interrupts_as_keyboard_interrupt():
+            result = scene.solve(callback=on_step)
+            wall = time.perf_counter() - t0
+            written = stream.finish(result, wall_time=wall)
+    except KeyboardInterrupt as stop:
+        return _interrupted(stop, stream, directory, time.perf_counter() - t0)
     except ModuleNotFoundError as err:
         return _needs_render(err, " (or set render = false in [output])")
+    except MemoryError:
+        _err("out of memory: the scene is too large for this machine (fewer elements "
+             "or load steps)")
+        return BAD_INPUT
     except OSError as err:
         _err(f"cannot write the output: {err}")
         return BAD_INPUT
-    directory = scene.output_directory(args.out)
+    except (ValueError, TypeError, ArithmeticError) as err:
+        kept = len(stream.result.steps) if stream.result is not None else 0
+        _err(f"the run failed: {err}"
+             + (f" ({kept} converged step(s) written to {directory})"
+                if kept and stream.entries else ""))
+        return SOLVE_FAILED
     if not result.converged:
         _err(f"the solve stopped: {result.message}")
         if written:
@@ -138,6 +163,51 @@ def cmd_run(args):
                  "file); add one, or pass --out DIR for the JSON summary, VTU "
                  "series and render")
     return OK
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the run is (like Ctrl-C) so that it stops the
+    same way: the steps kept so far are written, temporary files removed."""
+
+
+@contextlib.contextmanager
+def _interrupts_as_keyboard_interrupt():
+    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) for the
+    duration of the block; SIGINT raises KeyboardInterrupt as usual."""
+    import signal
+
+    def term(signum, frame):
+        raise Terminated()
+    try:
+        before = signal.signal(signal.SIGTERM, term)
+    except ValueError:                  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+def _interrupted(stop, stream, directory, wall):
+    """Ctrl-C (exit 130) or SIGTERM (exit 143): the kept steps are already
+    on disk; write the JSON summary of them, say so."""
+    import signal
+    signum = signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT
+    what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted (Ctrl-C)"
+    kept = len(stream.result.steps) if stream.result is not None else 0
+    try:
+        with _interrupts_as_keyboard_interrupt():
+            written = stream.interrupted(
+                f"{what} after {kept} converged step(s)", wall_time=wall)
+    except KeyboardInterrupt:           # a second signal: stop writing at once
+        written = []
+    except (OSError, ValueError) as err:
+        _err(f"cannot write the summary: {err}")
+        written = []
+    _err(f"{what}: {kept} converged step(s) kept"
+         + (f"; wrote {_files(written, directory)}" if written else ""))
+    return 128 + signum
 
 
 def cmd_check(args):
@@ -341,8 +411,21 @@ def main(argv=None):
     level = (logging.ERROR if getattr(args, "quiet", False)
              else logging.DEBUG if getattr(args, "verbose", False) else logging.INFO)
     undo = _log_to_terminal(level)
-    try:
+    try:                                  # never a traceback: say what failed
         return args.func(args)
+    except KeyboardInterrupt:
+        _err("interrupted")
+        return 130
+    except MemoryError:
+        _err("out of memory")
+        return BAD_INPUT
+    except (ValueError, TypeError) as err:
+        _err(str(err))
+        return BAD_INPUT
+    except Exception as err:              # a bug: name it, no traceback
+        _err(f"unexpected error ({type(err).__name__}: {err}); please report it with "
+             "the scene")
+        return SOLVE_FAILED
     finally:
         undo()
 
