@@ -1,0 +1,275 @@
+r"""Curve-to-curve contact of crossing strands: the true minimum distance
+between strands and point-to-point contact pairs at the closest points of
+crossing elements (Meier, Popp & Wall 2016: all-angle beam contact, the
+point-to-point part).
+
+Point-to-curve pairs at Gauss slave points (the paper's, :mod:`.search`)
+miss strands that cross between two slave points: with elements several
+contact radii long two strands can overlap by most of a radius while no
+slave point sees the other strand.  Here both parameters are free: for a
+pair of elements ``(e, f)`` the closest points ``X(u)``, ``Y(v)``
+(``u, v`` in [0, 1]) solve
+
+    min_{u, v} |X(u) - Y(v)|^2 / 2,    X, Y the cubic element curves,
+
+by a safeguarded 2 x 2 Newton (projected on the box, one-sided where a
+parameter sits on a bound; started from the best point of a 7 x 7 grid),
+vectorized over element pairs.  Candidates come from a k-d tree of element
+bounding spheres (the chord capsules of :func:`.search._capsules`); element
+pairs wholly inside the excluded arclength (periodic on a closed rod) go
+before they are solved, closest points closer than ``exclusion`` in
+arclength are dropped (as in :mod:`.search`).
+
+* :func:`min_distance`: the smallest distance between non-neighbouring
+  strands, with its arclengths (``s, s_bar``): the true penetration
+  ``2 eps - distance`` of a state, whatever the slave density.
+* :func:`crossing_pairs`: element pairs whose closest points are interior
+  to both elements (a stationary point), closer than ``reach``, and whose
+  tangents there are not near-parallel (angle above ``min_angle``: nearly
+  parallel strands are resolved by the Gauss-point pairs, whose closest
+  point of two curves is ill-conditioned); one contact pair each, keyed by
+  the element pair (``key = e * n_elements + f``, ``e < f``) so that the
+  multipliers can be carried (:func:`carry`).
+* :func:`crossing_work`: a point force at the pair, gap
+  ``d = 2 eps - |X(u) - Y(v)|`` and the augmented-Lagrangian law of
+  :mod:`.law` (``f = [d + mu lambda]_+ / mu``, a force, ``mu`` a compliance
+  per unit force), energy ``phi(d)``; residual and exact tangent with both
+  parameters free (the closest-point conditions differentiated: the
+  reduced Hessian ``F_qq - F_qp F_pp^{-1} F_pq`` of ``F = l^2 / 2``).
+
+A crossing pair and Gauss-point pairs can act at one crossing together:
+redundant constraints of the same gap, which the augmented Lagrangian
+handles (the multipliers share the load; the converged state is the same).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from ..element import shape_functions
+from .law import gap, normal_force, potential
+from .search import _capsules, _coefficients, _curve, _period, arc_distance
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def closest_points(C1, C2, iterations=40, grid=7, starts=3):
+    """Closest points ``(u, v)`` of cubic curve pairs with monomial
+    coefficients ``C1``, ``C2`` ``(4, 3, m)``; also their distance.  The
+    safeguarded Newton runs from the ``starts`` best points of a
+    ``grid x grid`` sampling (two local minima, e.g. a corner and an
+    interior point, are common) and the best result is kept."""
+    m = C1.shape[2]
+    t = np.linspace(0.0, 1.0, grid)
+    P1 = np.stack([_curve(C1, np.full(m, a))[0] for a in t])          # (g, 3, m)
+    P2 = np.stack([_curve(C2, np.full(m, a))[0] for a in t])
+    d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2).reshape(grid * grid, m)
+    k = np.argsort(d2, axis=0)[:starts].ravel()                      # (starts * m,)
+    u, v, d = _newton(np.tile(C1, starts), np.tile(C2, starts), t[k // grid], t[k % grid],
+                      iterations)
+    best = np.argmin(d.reshape(starts, m), axis=0) * m + np.arange(m)
+    return u[best], v[best], d[best]
+
+
+def _newton(C1, C2, u, v, iterations):
+    m = u.size
+    for _ in range(iterations):
+        X, X1, X2 = _curve(C1, u)
+        Y, Y1, Y2 = _curve(C2, v)
+        D = X - Y
+        gu, gv = _dot(D, X1), -_dot(D, Y1)
+        huu = _dot(X1, X1) + _dot(D, X2)
+        hvv = _dot(Y1, Y1) - _dot(D, Y2)
+        huv = -_dot(X1, Y1)
+        # a parameter on a bound with the gradient pushing outward stays
+        fu = ~(((u <= 0) & (gu > 0)) | ((u >= 1) & (gu < 0)))
+        fv = ~(((v <= 0) & (gv > 0)) | ((v >= 1) & (gv < 0)))
+        det = huu * hvv - huv * huv
+        both = fu & fv & (huu > 0) & (det > 1e-14 * (huu * hvv + 1e-300))
+        safe = lambda h, g: np.where(h > 1e-14, g / np.where(h > 1e-14, h, 1.0),   # noqa: E731
+                                     0.1 * np.sign(g))
+        du = np.where(both, (hvv * gu - huv * gv) / np.where(both, det, 1.0), safe(huu, gu))
+        dv = np.where(both, (huu * gv - huv * gu) / np.where(both, det, 1.0), safe(hvv, gv))
+        du, dv = np.where(fu, du, 0.0), np.where(fv, dv, 0.0)
+        # safeguard: backtrack until the distance does not increase (stay
+        # put if it always does: a minimum to round-off)
+        f0 = _dot(D, D) * (1 + 1e-15) + 1e-300
+        nu, nv = u.copy(), v.copy()
+        todo = np.ones(m, bool)
+        step = 1.0
+        for _ in range(12):
+            tu = np.clip(u - step * du, 0.0, 1.0)
+            tv = np.clip(v - step * dv, 0.0, 1.0)
+            Dn = _curve(C1, tu)[0] - _curve(C2, tv)[0]
+            ok = todo & (_dot(Dn, Dn) <= f0)
+            nu, nv = np.where(ok, tu, nu), np.where(ok, tv, nv)
+            todo &= ~ok
+            if not todo.any():
+                break
+            step *= 0.5
+        done = (np.abs(nu - u) < 1e-15) & (np.abs(nv - v) < 1e-15)
+        u, v = nu, nv
+        if done.all():
+            break
+    D = _curve(C1, u)[0] - _curve(C2, v)[0]
+    return u, v, np.sqrt(_dot(D, D))
+
+
+def _element_pairs(mesh, r, reach, exclusion):
+    """Candidate element pairs ``(e, f)``, ``e < f``: bounding spheres closer
+    than ``reach``, not wholly inside each other's excluded arclength."""
+    r_el = r[mesh.nodes]
+    e0, e1, edev = _capsules(r_el, 1)
+    centre = 0.5 * (e0[:, 0] + e1[:, 0])
+    rad = 0.5 * np.linalg.norm(e1[:, 0] - e0[:, 0], axis=1) + edev[:, 0]
+    P = cKDTree(centre).query_pairs(2 * rad.max() + reach, output_type="ndarray")
+    if P.size == 0:
+        return np.zeros((2, 0), dtype=np.int64), r_el
+    e, f = P[:, 0].astype(np.int64), P[:, 1].astype(np.int64)
+    keep = np.linalg.norm(centre[e] - centre[f], axis=1) - rad[e] - rad[f] < reach
+    e, f = np.minimum(e, f)[keep], np.maximum(e, f)[keep]
+    v, period = mesh.vertices, _period(mesh)
+    # wholly inside: every point of f within the exclusion of every point of
+    # e (the largest distance is between end points while both lie on an
+    # arc shorter than half the ring)
+    far = np.zeros(e.size)
+    for a in (v[e], v[e + 1]):
+        for b in (v[f], v[f + 1]):
+            far = np.maximum(far, arc_distance(a, b, period))
+    inside = far < exclusion
+    if period is not None:
+        inside &= (v[e + 1] - v[e]) + (v[f + 1] - v[f]) + exclusion < 0.5 * period
+    return np.stack([e[~inside], f[~inside]]), r_el
+
+
+@dataclass
+class CrossingPairs:
+    """Closest points of element pairs (``e < f``), one per pair."""
+    e: np.ndarray         # (m,) first element
+    f: np.ndarray         # (m,) second element
+    u: np.ndarray         # (m,) reference coordinate on e
+    v: np.ndarray         # (m,) on f
+    s: np.ndarray         # (m,) arclength of X(u)
+    s_bar: np.ndarray     # (m,) arclength of Y(v)
+    distance: np.ndarray  # (m,) |X(u) - Y(v)|
+    normal: np.ndarray    # (m, 3) (X - Y) / distance
+    cos_angle: np.ndarray # (m,) |t_e . t_f| at the closest points
+    key: np.ndarray       # (m,) e * n_elements + f
+
+    @property
+    def size(self):
+        return self.e.size
+
+
+def _solve(mesh, r, reach, exclusion):
+    (e, f), r_el = _element_pairs(mesh, r, reach, exclusion)
+    C = _coefficients(r_el).transpose(1, 2, 0)                 # (4, 3, ne)
+    u, v, dist = closest_points(C[:, :, e], C[:, :, f])
+    vt = mesh.vertices
+    s = vt[e] + u * (vt[e + 1] - vt[e])
+    s_bar = vt[f] + v * (vt[f + 1] - vt[f])
+    ok = (arc_distance(s, s_bar, _period(mesh)) >= exclusion) & (dist > 0)
+    return e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok], C
+
+
+@dataclass
+class MinDistance:
+    """The closest approach of non-neighbouring strands."""
+    distance: float       # inf if no strands within reach
+    s: float
+    s_bar: float
+    elements: tuple
+    xi: tuple
+
+    def penetration(self, radius):
+        """``2 eps - distance`` (positive: the tubes overlap)."""
+        return 2.0 * radius - self.distance
+
+
+def min_distance(mesh, r, radius, exclusion, reach=None):
+    """The true minimum distance between points of the centreline at least
+    ``exclusion`` apart in arclength (periodic on a closed rod), over
+    element pairs within ``reach`` (default ``3 radius``)."""
+    reach = 3.0 * radius if reach is None else reach
+    e, f, u, v, s, s_bar, dist, _ = _solve(mesh, r, reach, exclusion)
+    if dist.size == 0:
+        return MinDistance(np.inf, np.nan, np.nan, (-1, -1), (np.nan, np.nan))
+    k = int(np.argmin(dist))
+    return MinDistance(float(dist[k]), float(s[k]), float(s_bar[k]), (int(e[k]), int(f[k])),
+                       (float(u[k]), float(v[k])))
+
+
+def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(15.0)):
+    """Point-to-point contact pairs of crossing strands (see module doc)."""
+    reach = 3.0 * radius if reach is None else reach
+    e, f, u, v, s, s_bar, dist, C = _solve(mesh, r, reach, exclusion)
+    X, X1, _ = _curve(C[:, :, e], u)
+    Y, Y1, _ = _curve(C[:, :, f], v)
+    cos = np.abs(_dot(X1, Y1)) / np.sqrt(_dot(X1, X1) * _dot(Y1, Y1))
+    ok = (u > 0) & (u < 1) & (v > 0) & (v < 1) & (dist < reach) & (cos < np.cos(min_angle))
+    N = ((X - Y) / dist).T
+    ne = mesh.nodes.shape[0]
+    return CrossingPairs(e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok], N[ok], cos[ok],
+                         e[ok] * ne + f[ok])
+
+
+def carry(old_key, old_lam, new_key):
+    """Multipliers of the new pairs: the old ones of the same element pair,
+    0 for new element pairs."""
+    lam = np.zeros(new_key.size)
+    if old_key.size:
+        j = np.minimum(np.searchsorted(old_key, new_key), old_key.size - 1)
+        hit = old_key[j] == new_key
+        lam[hit] = old_lam[j[hit]]
+    return lam
+
+
+def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
+    """Energy, force vector ``(n_dofs,)``, tangent (CSC or None) and the
+    per-pair forces ``f_N`` of the crossing pairs (``pairs`` from
+    :func:`crossing_pairs` at ``r``; ``lam`` ``(m,)`` their multipliers,
+    ``mu`` the compliance of the point law).  scikit-fem dof numbering as
+    :func:`.assembly.contact_work` (6 dofs per node, positions first)."""
+    n = mesh.n_dofs
+    m = pairs.size
+    if m == 0:
+        return 0.0, np.zeros(n), (sp.csc_matrix((n, n)) if tangent else None), np.zeros(0)
+    d = gap(pairs.distance, radius)
+    fN, dfN = normal_force(d, lam, mu)
+    energy = float(np.sum(potential(d, lam, mu)))
+    Nu, dNu, d2Nu = (a.T for a in shape_functions(pairs.u))       # (m, 4)
+    Nv, dNv, d2Nv = (a.T for a in shape_functions(pairs.v))
+    re, rf = r[mesh.nodes[pairs.e]], r[mesh.nodes[pairs.f]]       # (m, 4, 3)
+    X1, X2 = np.einsum("mk,mkc->mc", dNu, re), np.einsum("mk,mkc->mc", d2Nu, re)
+    Y1, Y2 = np.einsum("mk,mkc->mc", dNv, rf), np.einsum("mk,mkc->mc", d2Nv, rf)
+    l = pairs.distance
+    D = pairs.normal * l[:, None]
+    z = np.zeros((m, 4))
+    aD = np.concatenate([Nu, -Nv], axis=1)                        # (m, 8): delta D
+    aX1 = np.concatenate([dNu, z], axis=1)                        # delta X'
+    aY1 = np.concatenate([z, dNv], axis=1)                        # delta Y'
+    kron = lambda a, c: (a[:, :, None] * c[:, None, :]).reshape(m, 24)   # noqa: E731
+    Fq = kron(aD, D)                                              # dF/dq, F = l^2 / 2
+    lq = Fq / l[:, None]
+    nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
+    dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(m, 24)
+    force = np.bincount(dofs.ravel(), weights=(-fN[:, None] * lq).ravel(), minlength=n)
+    if not tangent:
+        return energy, force, None, fN
+    Fpq = np.stack([kron(aX1, D) + kron(aD, X1), -(kron(aY1, D) + kron(aD, Y1))], axis=1)
+    Fpp = np.empty((m, 2, 2))
+    Fpp[:, 0, 0] = np.sum(X1 * X1 + D * X2, axis=1)
+    Fpp[:, 1, 1] = np.sum(Y1 * Y1 - D * Y2, axis=1)
+    Fpp[:, 0, 1] = Fpp[:, 1, 0] = -np.sum(X1 * Y1, axis=1)
+    Fqq = (aD[:, :, None, None, None] * aD[:, None, None, :, None]
+           * np.eye(3)[None, None, :, None, :]).reshape(m, 24, 24)
+    H = Fqq - np.swapaxes(Fpq, 1, 2) @ np.linalg.solve(Fpp, Fpq)   # reduced Hessian of F
+    lqq = H / l[:, None, None] - lq[:, :, None] * lq[:, None, :] / l[:, None, None]
+    Ke = dfN[:, None, None] * lq[:, :, None] * lq[:, None, :] - fN[:, None, None] * lqq
+    rows = np.broadcast_to(dofs[:, :, None], Ke.shape).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], Ke.shape).ravel()
+    K = sp.csc_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
+    return energy, force, K, fN
