@@ -49,7 +49,7 @@ from scipy.spatial import cKDTree
 
 from ..element import shape_functions
 from .law import gap, normal_force, potential
-from .search import _capsules, _coefficients, _curve, _period, arc_distance
+from .search import _coefficients, _curve, _period, arc_distance
 
 
 def _dot(a, b):
@@ -75,18 +75,22 @@ def closest_points(C1, C2, iterations=40, grid=7, starts=3):
 
 
 def _newton(C1, C2, u, v, iterations):
-    m = u.size
+    """Projected, safeguarded Newton on ``|X(u) - Y(v)|^2 / 2`` from
+    ``(u, v)``, on the pairs not yet converged only."""
+    u, v = u.copy(), v.copy()
+    act = np.arange(u.size)
     for _ in range(iterations):
-        X, X1, X2 = _curve(C1, u)
-        Y, Y1, Y2 = _curve(C2, v)
+        c1, c2, ua, va = C1[:, :, act], C2[:, :, act], u[act], v[act]
+        X, X1, X2 = _curve(c1, ua)
+        Y, Y1, Y2 = _curve(c2, va)
         D = X - Y
         gu, gv = _dot(D, X1), -_dot(D, Y1)
         huu = _dot(X1, X1) + _dot(D, X2)
         hvv = _dot(Y1, Y1) - _dot(D, Y2)
         huv = -_dot(X1, Y1)
         # a parameter on a bound with the gradient pushing outward stays
-        fu = ~(((u <= 0) & (gu > 0)) | ((u >= 1) & (gu < 0)))
-        fv = ~(((v <= 0) & (gv > 0)) | ((v >= 1) & (gv < 0)))
+        fu = ~(((ua <= 0) & (gu > 0)) | ((ua >= 1) & (gu < 0)))
+        fv = ~(((va <= 0) & (gv > 0)) | ((va >= 1) & (gv < 0)))
         det = huu * hvv - huv * huv
         both = fu & fv & (huu > 0) & (det > 1e-14 * (huu * hvv + 1e-300))
         safe = lambda h, g: np.where(h > 1e-14, g / np.where(h > 1e-14, h, 1.0),   # noqa: E731
@@ -97,40 +101,83 @@ def _newton(C1, C2, u, v, iterations):
         # safeguard: backtrack until the distance does not increase (stay
         # put if it always does: a minimum to round-off)
         f0 = _dot(D, D) * (1 + 1e-15) + 1e-300
-        nu, nv = u.copy(), v.copy()
-        todo = np.ones(m, bool)
+        nu, nv = ua.copy(), va.copy()
+        todo = np.arange(act.size)
         step = 1.0
         for _ in range(12):
-            tu = np.clip(u - step * du, 0.0, 1.0)
-            tv = np.clip(v - step * dv, 0.0, 1.0)
-            Dn = _curve(C1, tu)[0] - _curve(C2, tv)[0]
-            ok = todo & (_dot(Dn, Dn) <= f0)
-            nu, nv = np.where(ok, tu, nu), np.where(ok, tv, nv)
-            todo &= ~ok
-            if not todo.any():
+            tu = np.clip(ua[todo] - step * du[todo], 0.0, 1.0)
+            tv = np.clip(va[todo] - step * dv[todo], 0.0, 1.0)
+            Dn = _curve(c1[:, :, todo], tu)[0] - _curve(c2[:, :, todo], tv)[0]
+            ok = _dot(Dn, Dn) <= f0[todo]
+            nu[todo[ok]], nv[todo[ok]] = tu[ok], tv[ok]
+            todo = todo[~ok]
+            if todo.size == 0:
                 break
             step *= 0.5
-        done = (np.abs(nu - u) < 1e-15) & (np.abs(nv - v) < 1e-15)
-        u, v = nu, nv
-        if done.all():
+        # stationary (the projected gradient at round-off) or stuck
+        tol = 1e-13 * np.sqrt(_dot(D, D) * (_dot(X1, X1) + _dot(Y1, Y1))) + 1e-300
+        stationary = (np.abs(np.where(fu, gu, 0.0)) <= tol) & (np.abs(np.where(fv, gv, 0.0)) <= tol)
+        moved = ((np.abs(nu - ua) >= 1e-15) | (np.abs(nv - va) >= 1e-15)) & ~stationary
+        u[act], v[act] = nu, nv
+        act = act[moved]
+        if act.size == 0:
             break
     D = _curve(C1, u)[0] - _curve(C2, v)[0]
     return u, v, np.sqrt(_dot(D, D))
 
 
-def _element_pairs(mesh, r, reach, exclusion):
-    """Candidate element pairs ``(e, f)``, ``e < f``: bounding spheres closer
-    than ``reach``, not wholly inside each other's excluded arclength."""
+def _segment_pairs(p0, p1, q0, q1):
+    """Distance between segments ``[p0, p1]`` and ``[q0, q1]`` (``(3, m)``;
+    nonzero lengths), after Ericson, Real-Time Collision Detection 5.1.9."""
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a, e, f = _dot(d1, d1), _dot(d2, d2), _dot(d2, r)
+    c, b = _dot(d1, r), _dot(d1, d2)
+    den = a * e - b * b
+    s = np.where(den > 1e-12 * a * e, np.clip((b * f - c * e) / np.where(den > 0, den, 1.0),
+                                              0.0, 1.0), 0.0)
+    t = (b * s + f) / e
+    s = np.where(t < 0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1, np.clip((b - c) / a, 0.0, 1.0),
+                                                            s))
+    t = np.clip(t, 0.0, 1.0)
+    D = p0 + s * d1 - q0 - t * d2
+    return np.sqrt(_dot(D, D))
+
+
+def _bounds(r_el):
+    """Per element: chord ends ``(3, ne)``, a bound ``dev`` of the curve's
+    distance from its chord and ``alpha``, a bound of the angle between the
+    curve's tangent and its chord.  The curve minus its chord is
+    ``xi (1 - xi) (A + B xi)``: ``|dev| <= max(|A|, |A + B|) / 4`` and its
+    xi-derivative is at most ``|A| + 1.25 |B|``."""
+    p0, p1, q1, q2 = r_el[:, 0], r_el[:, 1], r_el[:, 2], r_el[:, 3]
+    e1 = q1 - (2.0 * p0 + p1) / 3.0
+    e2 = q2 - (p0 + 2.0 * p1) / 3.0
+    B = 13.5 * (e2 - e1)
+    A = 9.0 * e1 - 4.5 * e2
+    nA, nB = np.linalg.norm(A, axis=1), np.linalg.norm(B, axis=1)
+    dev = 0.25 * np.maximum(nA, np.linalg.norm(A + B, axis=1))
+    chord = np.linalg.norm(p1 - p0, axis=1)
+    alpha = np.arcsin(np.minimum(1.0, (nA + 1.25 * nB) / np.maximum(chord, 1e-300)))
+    return np.ascontiguousarray(p0.T), np.ascontiguousarray(p1.T), dev, alpha
+
+
+def _element_pairs(mesh, r, reach, exclusion, min_angle=None):
+    """Candidate element pairs ``(e, f)``, ``e < f``, with a lower bound
+    ``lb`` of their distance below ``reach`` (chord-to-chord distance minus
+    both deviation bounds), not wholly inside each other's excluded
+    arclength; with ``min_angle``, also not near-parallel everywhere (chord
+    angle plus both tangent-deviation bounds below it)."""
     r_el = r[mesh.nodes]
-    e0, e1, edev = _capsules(r_el, 1)
-    centre = 0.5 * (e0[:, 0] + e1[:, 0])
-    rad = 0.5 * np.linalg.norm(e1[:, 0] - e0[:, 0], axis=1) + edev[:, 0]
+    P0, P1, dev, alpha = _bounds(r_el)
+    centre = 0.5 * (P0 + P1).T
+    rad = 0.5 * np.sqrt(_dot(P1 - P0, P1 - P0)) + dev
     P = cKDTree(centre).query_pairs(2 * rad.max() + reach, output_type="ndarray")
+    none = np.zeros(0, dtype=np.int64)
     if P.size == 0:
-        return np.zeros((2, 0), dtype=np.int64), r_el
-    e, f = P[:, 0].astype(np.int64), P[:, 1].astype(np.int64)
+        return none, none, np.zeros(0), r_el
+    e, f = np.minimum(P[:, 0], P[:, 1]).astype(np.int64), np.maximum(P[:, 0], P[:, 1]).astype(np.int64)
     keep = np.linalg.norm(centre[e] - centre[f], axis=1) - rad[e] - rad[f] < reach
-    e, f = np.minimum(e, f)[keep], np.maximum(e, f)[keep]
+    e, f = e[keep], f[keep]
     v, period = mesh.vertices, _period(mesh)
     # wholly inside: every point of f within the exclusion of every point of
     # e (the largest distance is between end points while both lie on an
@@ -142,7 +189,14 @@ def _element_pairs(mesh, r, reach, exclusion):
     inside = far < exclusion
     if period is not None:
         inside &= (v[e + 1] - v[e]) + (v[f + 1] - v[f]) + exclusion < 0.5 * period
-    return np.stack([e[~inside], f[~inside]]), r_el
+    e, f = e[~inside], f[~inside]
+    lb = _segment_pairs(P0[:, e], P1[:, e], P0[:, f], P1[:, f]) - dev[e] - dev[f]
+    keep = lb < reach
+    if min_angle is not None:
+        de, df = P1[:, e] - P0[:, e], P1[:, f] - P0[:, f]
+        cos = np.abs(_dot(de, df)) / np.sqrt(_dot(de, de) * _dot(df, df))
+        keep &= np.arccos(np.minimum(cos, 1.0)) + alpha[e] + alpha[f] >= min_angle
+    return e[keep], f[keep], lb[keep], r_el
 
 
 @dataclass
@@ -164,15 +218,13 @@ class CrossingPairs:
         return self.e.size
 
 
-def _solve(mesh, r, reach, exclusion):
-    (e, f), r_el = _element_pairs(mesh, r, reach, exclusion)
+def _solve(mesh, e, f, r_el):
     C = _coefficients(r_el).transpose(1, 2, 0)                 # (4, 3, ne)
     u, v, dist = closest_points(C[:, :, e], C[:, :, f])
     vt = mesh.vertices
     s = vt[e] + u * (vt[e + 1] - vt[e])
     s_bar = vt[f] + v * (vt[f + 1] - vt[f])
-    ok = (arc_distance(s, s_bar, _period(mesh)) >= exclusion) & (dist > 0)
-    return e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok], C
+    return u, v, s, s_bar, dist, C
 
 
 @dataclass
@@ -194,18 +246,40 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
     ``exclusion`` apart in arclength (periodic on a closed rod), over
     element pairs within ``reach`` (default ``3 radius``)."""
     reach = 3.0 * radius if reach is None else reach
-    e, f, u, v, s, s_bar, dist, _ = _solve(mesh, r, reach, exclusion)
-    if dist.size == 0:
+    e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion)
+    period = _period(mesh)
+    # branch and bound: the pairs with the smallest lower bounds first, then
+    # only those whose bound is below the closest admissible distance found
+    order = np.argsort(lb, kind="stable")
+    e, f, lb = e[order], f[order], lb[order]
+    best, out = np.inf, []
+    start = 0
+    bound = lambda: min(best * (1 - 1e-9), reach)                      # noqa: E731
+    while start < e.size and lb[start] < bound():
+        stop = min(e.size, start + max(64, start))
+        stop = start + int(np.searchsorted(lb[start:stop], bound()))
+        sl = slice(start, max(stop, start + 1))
+        u, v, s, s_bar, dist, _ = _solve(mesh, e[sl], f[sl], r_el)
+        ok = (arc_distance(s, s_bar, period) >= exclusion) & (dist > 0) & (dist < reach)
+        if ok.any():
+            k = np.flatnonzero(ok)[np.argmin(dist[ok])]
+            if dist[k] < best:
+                best = dist[k]
+                out = [e[sl][k], f[sl][k], u[k], v[k], s[k], s_bar[k]]
+        start = sl.stop
+    if not out:
         return MinDistance(np.inf, np.nan, np.nan, (-1, -1), (np.nan, np.nan))
-    k = int(np.argmin(dist))
-    return MinDistance(float(dist[k]), float(s[k]), float(s_bar[k]), (int(e[k]), int(f[k])),
-                       (float(u[k]), float(v[k])))
+    return MinDistance(float(best), float(out[4]), float(out[5]), (int(out[0]), int(out[1])),
+                       (float(out[2]), float(out[3])))
 
 
 def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(15.0)):
     """Point-to-point contact pairs of crossing strands (see module doc)."""
     reach = 3.0 * radius if reach is None else reach
-    e, f, u, v, s, s_bar, dist, C = _solve(mesh, r, reach, exclusion)
+    e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion, min_angle)
+    u, v, s, s_bar, dist, C = _solve(mesh, e, f, r_el)
+    ok = (arc_distance(s, s_bar, _period(mesh)) >= exclusion) & (dist > 0)
+    e, f, u, v, s, s_bar, dist = e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok]
     X, X1, _ = _curve(C[:, :, e], u)
     Y, Y1, _ = _curve(C[:, :, f], v)
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(_dot(X1, X1) * _dot(Y1, Y1))
