@@ -13,12 +13,17 @@ pair of elements ``(e, f)`` the closest points ``X(u)``, ``Y(v)``
     min_{u, v} |X(u) - Y(v)|^2 / 2,    X, Y the cubic element curves,
 
 by a safeguarded 2 x 2 Newton (projected on the box, one-sided where a
-parameter sits on a bound; started from the best point of a 7 x 7 grid),
-vectorized over element pairs.  Candidates come from a k-d tree of element
-bounding spheres (the chord capsules of :func:`.search._capsules`); element
-pairs wholly inside the excluded arclength (periodic on a closed rod) go
-before they are solved, closest points closer than ``exclusion`` in
-arclength are dropped (as in :mod:`.search`).
+parameter sits on a bound, backtracking; started from the three best points
+of a 7 x 7 grid, the best result kept), vectorized over element pairs.
+Candidates come from a k-d tree of element bounding spheres, then a lower
+bound of their distance (chord to chord minus the bounds of each curve's
+distance from its chord, :func:`_bounds`); element pairs wholly inside the
+excluded arclength (periodic on a closed rod) go before they are solved,
+closest points closer than ``exclusion`` in arclength are dropped (as in
+:mod:`.search`).  :func:`min_distance` solves the pairs in order of their
+lower bound and stops at the closest admissible distance found (branch and
+bound); :func:`crossing_pairs` also drops pairs whose chords and tangent
+bounds keep them near-parallel everywhere.
 
 * :func:`min_distance`: the smallest distance between non-neighbouring
   strands, with its arclengths (``s, s_bar``): the true penetration
