@@ -592,6 +592,29 @@ def _load_meshes(pv, loads, length, start_offset, centre=None):
     return merge(forces), merge(moments)
 
 
+def _view_vector(camera):
+    """``camera`` as a view direction (a 3-vector, from the scene towards
+    the camera), or None if it is a view name or a camera position."""
+    if isinstance(camera, str):
+        return None
+    try:
+        v = np.asarray(camera, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if v.shape != (3,):
+        return None
+    if not np.all(np.isfinite(v)) or not v.any():
+        raise ValueError(f"camera = {camera!r}; a view direction must be a finite, "
+                         f"non-zero 3-vector")
+    return v
+
+
+def _view_up(view):
+    """+z up, unless the view is along z (then +y)."""
+    v = view / np.linalg.norm(view)
+    return (0.0, 1.0, 0.0) if abs(v[2]) > 0.95 else (0.0, 0.0, 1.0)
+
+
 def _centreline_values(name, values, n):
     a = np.asarray(values, dtype=float)
     if a.shape != (n,):
@@ -648,12 +671,14 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
         Text above the scene (DejaVu Sans: Greek letters show), shrunk or
         wrapped to fit the width.
     background : colour
-    camera : str or camera position
+    camera : str, 3-vector or camera position
         A pyvista view (``"iso"``, ``"xy"``, ``"xz"``, ``"yz"``, ``"yx"``,
-        ``"zx"``, ``"zy"``): the camera is reset onto the whole scene and then
-        zoomed so that the scene fills about 90 % of its part of the image.
-        Anything else (e.g. ``[position, focal_point, view_up]``) is passed
-        to ``Plotter.camera_position`` and used as is.
+        ``"zx"``, ``"zy"``) or a view direction (from the scene towards the
+        camera, e.g. ``(0.2, -1, 0.45)``; ``+z`` up): the camera is reset
+        onto the whole scene and then zoomed so that the scene fills about
+        90 % of its part of the image.  Anything else (e.g.
+        ``[position, focal_point, view_up]``) is passed to
+        ``Plotter.camera_position`` and used as is.
     color, stripe_color : colour
         Tube colour and colour of the material line along ``d1``.
     stripe_width, n_around
@@ -844,8 +869,12 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
                 pl.add_axes(viewport=(0.84, 0.0, 1.0, 0.2), line_width=3,
                             labels_off=False)
 
-            if isinstance(camera, str):
-                pl.camera_position = camera
+            view = _view_vector(camera)
+            if isinstance(camera, str) or view is not None:
+                if view is None:
+                    pl.camera_position = camera
+                else:
+                    pl.view_vector(view, viewup=_view_up(view))
                 pl.reset_camera()
                 if zoom is None:
                     pts = np.vstack(fit_pts)

@@ -405,13 +405,11 @@ def _plot(rec, ana, length, path):
     return path
 
 
-def _camera(points, direction=(0.2, -1.0, 0.45), distance=1.9):
-    """An oblique view (``[position, focal point, view up]``) that sees the
-    rod's axis (x) from the side, so that neither tail hides behind a loop."""
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    centre, size = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
-    d = np.asarray(direction, float) / np.linalg.norm(direction)
-    return [tuple(centre + distance * size * d), tuple(centre), (0.0, 0.0, 1.0)]
+def _camera(points=None, direction=(0.2, -1.0, 0.45)):
+    """An oblique view direction (from the scene towards the camera; the
+    render fits the view to the scene) that sees the rod's axis (x) from
+    the side, so that neither tail hides behind a loop."""
+    return tuple(direction)
 
 
 def _render(sol, out, window_size=(800, 600)):
@@ -421,8 +419,10 @@ def _render(sol, out, window_size=(800, 600)):
     for name, k in stages(sol["records"]):
         path = os.path.join(out, f"twisted_rod_{name}.png")
         rec = sol["records"][k]
-        res.render(path, step=k, radius=radius, camera=_camera(res.steps[k].r),
-                   window_size=window_size, contact_radius=0.8 * radius,
+        # tubes at 0.6 of the contact radius, so that the contact points
+        # (on the centrelines) show between the plies
+        res.render(path, step=k, radius=0.6 * radius, camera=_camera(res.steps[k].r),
+                   window_size=window_size, contact_radius=0.75 * radius,
                    title=f"{name}: {rec['turns']:.2f} turns, torque {rec['torque']:.3f} √(BT), "
                          f"{rec['contacts']} contact points")
         pngs.append(path)
