@@ -410,3 +410,25 @@ def test_gif_keeps_the_stick_and_slip_colours(tmp_path):
         c = np.array([int(STATE_COLORS[k][i:i + 2], 16) for i in (1, 3, 5)])
         for f in frames:
             assert (np.abs(f - c).max(axis=-1) <= 12).sum() > 20, STATE_COLORS[k]
+
+
+def test_long_titles_with_symbols_fit_a_480_pixel_image(tmp_path):
+    """Titles are drawn with a font that has Greek letters, shrunk (then
+    wrapped) to the width: nothing is clipped at the image edges."""
+    pytest.importorskip("pyvista")
+    from PIL import Image
+
+    from skfem_rod.render import _title_lines, render_rod
+
+    title = "plectoneme with friction γ_T = 0.3, 2π turns, torque 0.623 √(BT), 26 contact points"
+    font, size, lines = _title_lines(title, 480, 20)
+    assert font.getbbox("γπ√")[2] > 0
+    assert len(lines) <= 2
+    points, frames = twisted_rod(n=41, turns=0.5)
+    png = render_rod(tmp_path / "t.png", points, frames, 0.05, window_size=(480, 360),
+                     title=title, legend=False, axes=False)
+    img = np.asarray(Image.open(png).convert("L")).astype(int)
+    band = img[: img.shape[0] // 8]
+    dark = np.nonzero(band < 128)
+    assert dark[0].size > 200                                   # the title is drawn
+    assert dark[1].min() > 2 and dark[1].max() < 477            # and not clipped
