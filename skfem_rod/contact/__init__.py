@@ -51,6 +51,15 @@ class ContactOptions:
         of updates changes.
     max_penalty_scale : cap of that growth, as a multiple of the nominal
         penalty stiffness; default 1000.
+    rotational_slip : what the rotational law acts on
+        (:class:`.friction_assembly.FrictionParams`, docs/friction.md F7):
+        ``"twist"`` (default), ``"circumferential"`` or ``"pivot"``.
+    crossing : add point-to-point contact pairs at the closest points of
+        crossing strands (:mod:`.crossing`); default False.
+    crossing_penalty : compliance of the crossing pairs' point law (length
+        per unit force); default ``penalty / radius``.
+    crossing_angle : crossing pairs only where the strands' tangents make
+        more than this angle (radians); default 15 degrees.
     """
     radius: float
     penalty: float
@@ -66,6 +75,10 @@ class ContactOptions:
     friction_tolerance: float = 1e-3
     penalty_growth: float = 4.0
     max_penalty_scale: float = 1e3
+    rotational_slip: str = "twist"
+    crossing: bool = False
+    crossing_penalty: float = None
+    crossing_angle: float = float(np.radians(15.0))
 
     @property
     def friction(self):
@@ -105,3 +118,24 @@ class ContactOptions:
             if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
                                            and np.isfinite(v) and v > 0):
                 raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")
+        if self.rotational_slip not in ("twist", "circumferential", "pivot"):
+            raise ValueError("contact rotational_slip must be 'twist', 'circumferential' or "
+                             f"'pivot', got {self.rotational_slip!r}")
+        if not isinstance(self.crossing, (bool, np.bool_)):
+            raise ValueError(f"contact crossing must be True or False, got {self.crossing!r}")
+        if self.crossing_penalty is None:
+            self.crossing_penalty = self.penalty / self.radius
+        for name in ("crossing_penalty", "crossing_angle"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
+                                           and np.isfinite(v) and v > 0):
+                raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")
+        if self.crossing_angle >= np.pi / 2:
+            raise ValueError(f"contact crossing_angle must be below pi/2, got {self.crossing_angle!r}")
+
+    def friction_params(self, push_forward=True, scale_T=1.0, scale_R=1.0):
+        """The :class:`.friction_assembly.FrictionParams` of these options
+        (``scale_*`` divide the compliances: the adaptive penalty factors)."""
+        from .friction_assembly import FrictionParams
+        return FrictionParams(self.gamma_T, self.gamma_R, self.mu_T / scale_T,
+                              self.mu_R / scale_R, push_forward, self.rotational_slip)
