@@ -612,9 +612,15 @@ class Rod:
         if unknown:
             raise ValueError(f"unknown contact option(s) {', '.join(map(repr, unknown))}; "
                              f"allowed: radius, penalty, exclusion, {', '.join(allowed)}")
+        self._check_contact_radius(eps)          # before defaults derived from it
         EI = max(self.section.EI1, self.section.EI2)
         with np.errstate(over="ignore", under="ignore"):
-            default = 10.0 * eps**4 / EI
+            default = 10.0 * np.float64(eps) ** 4 / EI
+        if not (np.isfinite(default) and default > 0):
+            raise ValueError(f"radius {eps!r}: the default penalty 10 eps^4 / EI = "
+                             f"{float(default)!r} is out of floating-point range; give "
+                             "penalty=... or choose other units")
+        default = float(default)
         contact = ContactOptions(
             radius=eps, penalty=default if penalty is None else penalty,
             exclusion=np.pi * eps if exclusion is None else exclusion, **options)
@@ -822,19 +828,22 @@ class Rod:
         e = np.repeat(np.arange(ne), 3)
         h = np.diff(mesh.vertices)
         s = mesh.vertices[e] + xi * h[e]
-        d = 1e-3 * h[e]
-        with np.errstate(all="ignore"):
+        mid = s[1::3]                                   # element midpoints
+        d = 1e-4 * h
+        with np.errstate(all="ignore"):                 # shapes may be costly: 4 n points
             r_ex, R_ex = self.shape(s)
-            _, R_m = self.shape(np.maximum(s - d, 0.0))
-            _, R_p = self.shape(np.minimum(s + d, self.length))
+            R_d = self.shape(mid + d)[1]
         if not (np.all(np.isfinite(r_ex)) and np.all(np.isfinite(R_ex))
-                and np.all(np.isfinite(R_m)) and np.all(np.isfinite(R_p))):
+                and np.all(np.isfinite(R_d))):
             raise ValueError(f"shape {self.shape!r} gives non-finite positions or frames "
                              "between the nodes: check its parameters")
-        # rotation rate of the frame (curvature and twist) and curvature
-        omega = np.linalg.norm(logm(np.swapaxes(R_m, -1, -2) @ R_p), axis=-1) / (2 * d)
-        kappa = np.linalg.norm(R_p[:, :, 2] - R_m[:, :, 2], axis=-1) / (2 * d)
-        rho = 1.0 / max(float(kappa.max()), 1e-300)
+        # rotation rate of the frame (curvature and twist) and curvature at the
+        # element midpoints (forward differences)
+        R_mid = R_ex[1::3]
+        omega = np.linalg.norm(logm(np.swapaxes(R_mid, -1, -2) @ R_d), axis=-1) / d
+        kappa = np.linalg.norm(R_d[:, :, 2] - R_mid[:, :, 2], axis=-1) / d
+        e_ok = np.arange(ne)
+        rho = 1.0 / max(float(kappa.max(initial=0.0)), 1e-300)
         N = shape_functions(xi)[0]                                  # (4, m)
         nodes = mesh.nodes[e]
         r_h = np.einsum("Im,mIi->mi", N, self.r0[nodes])
@@ -852,7 +861,7 @@ class Rod:
         # elements needed: the h^4 law from the measured errors, and at most
         # REFERENCE_TURN rad of frame rotation per element (beyond it the
         # errors saturate and the law says nothing)
-        turn = float((omega * h[e]).max())
+        turn = float((omega * h[e_ok]).max(initial=0.0))
         factor = max((pos / tol_p) ** 0.25 if np.isfinite(pos) else 1.0,
                      (ang / tol_a) ** 0.25 if np.isfinite(ang) else 1.0,
                      turn / REFERENCE_TURN)
@@ -863,6 +872,14 @@ class Rod:
             f"radius of curvature ({rho:.3g}) off the given curve (allowed {tol_p:g}) and "
             f"its frames up to {ang:.3g} rad off (allowed {tol_a:g}); an element turns "
             f"the frame by up to {turn:.3g} rad. Use n_elements >= {need}")
+
+    def _check_contact_radius(self, eps):
+        closed = bool(getattr(self.mesh, "closed", False))
+        span = self.length / 2 if closed else self.length
+        if not 2 * eps < span:
+            raise ValueError(f"contact radius {eps:g}: the contact diameter 2 eps = "
+                             f"{2 * eps:g} must be smaller than the "
+                             f"{'half ring' if closed else 'rod'} ({span:g})")
 
     def check_contact(self):
         """Raise ValueError if the contact parameters make no sense for this
@@ -893,10 +910,7 @@ class Rod:
         L, eps, ex = self.length, c.radius, c.exclusion
         closed = bool(getattr(self.mesh, "closed", False))
         span = L / 2 if closed else L
-        if not 2 * eps < span:
-            raise ValueError(f"contact radius {eps:g}: the contact diameter 2 eps = "
-                             f"{2 * eps:g} must be smaller than the rod ({'half the ring, ' if closed else ''}"
-                             f"{span:g})")
+        self._check_contact_radius(eps)
         if not ex < span:
             raise ValueError(f"contact exclusion {ex:g} excludes every pair of points: it "
                              f"must be smaller than the {'half ring' if closed else 'rod length'} "
@@ -915,11 +929,17 @@ class Rod:
                              "each other, a smaller one makes the tangent singular)")
         # initial interpenetration: dense samples of the reference centreline
         from scipy.spatial import cKDTree
-        n = int(min(max(8 * self.mesh.n_elements, np.ceil(4 * L / eps)), 400_000))
-        s = np.linspace(0.0, L, n + 1)
-        if closed:
-            s = s[:-1]
-        r = self.shape(s)[0]
+        # samples of the discrete reference (the P3 interpolation of the nodes,
+        # what the solver starts from), about eps / 2 apart
+        from .element import shape_functions
+        mesh = self.mesh
+        k = int(np.clip(np.ceil(2 * L / eps / mesh.n_elements), 4,
+                        max(4, 400_000 // mesh.n_elements)))
+        xi = (np.arange(k) + 0.5) / k
+        N = shape_functions(xi)[0]                                  # (4, k)
+        r = np.einsum("Ik,eIi->eki", N, self.r0[mesh.nodes]).reshape(-1, 3)
+        h = np.diff(mesh.vertices)
+        s = (mesh.vertices[:-1, None] + xi[None] * h[:, None]).ravel()
         tree = cKDTree(r)
         gap = 2 * eps * (1 - INITIAL_OVERLAP_TOL)
         pairs = tree.query_pairs(gap, output_type="ndarray")
