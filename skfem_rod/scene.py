@@ -71,6 +71,8 @@ class _Bad(Exception):
 
 def _show(v, limit=80):
     """A value as it would read in TOML (shortened)."""
+    if isinstance(v, np.ndarray) and v.ndim == 0:
+        v = v.item()
     if isinstance(v, (bool, np.bool_)):
         s = "true" if v else "false"
     elif isinstance(v, str):
@@ -198,6 +200,8 @@ class Directory:
 
 def _seq(v):
     if isinstance(v, np.ndarray):
+        if v.ndim == 0:
+            raise _Bad()
         return list(v)
     if not isinstance(v, (list, tuple)):
         raise _Bad()
