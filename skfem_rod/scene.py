@@ -468,14 +468,23 @@ def _contact_keys():
                                   "(times gamma f_N)",
             "penalty_growth": "adaptive Uzawa penalty: growth factor where the "
                               "violation stalls (1: fixed penalty)",
-            "max_penalty_scale": "cap of the adaptive penalty (times the nominal one)"}
+            "max_penalty_scale": "cap of the adaptive penalty (times the nominal one)",
+            "rotational_slip": "what the rotational friction law acts on: \"twist\", "
+                               "\"circumferential\" or \"pivot\"",
+            "crossing": "point-to-point pairs at the closest points of crossing strands",
+            "crossing_penalty": "compliance of the crossing pairs (default penalty / eps)",
+            "crossing_angle": "crossing pairs only above this angle between the strands "
+                              "(rad)"}
     checks = {"radius": POSITIVE, "penalty": POSITIVE, "exclusion": POSITIVE,
               "n_slave": Integer(1, 20), "tolerance": POSITIVE,
               "max_uzawa": Integer(1, 10_000), "margin": Number(0, lo_open=False),
               "gamma_T": Number(0, lo_open=False), "gamma_R": Number(0, lo_open=False),
               "mu_T": POSITIVE, "mu_R": POSITIVE, "friction_tolerance": POSITIVE,
               "penalty_growth": Number(1, lo_open=False),
-              "max_penalty_scale": Number(1, lo_open=False)}
+              "max_penalty_scale": Number(1, lo_open=False),
+              "rotational_slip": Choice("twist", "circumferential", "pivot"),
+              "crossing": Boolean(), "crossing_penalty": POSITIVE,
+              "crossing_angle": Number(0, math.pi / 2)}
     keys = {"enabled": Key(Boolean(), True, "switch self-contact on")}
     keys.update({n: Key(checks[n], d[n], docs[n]) for n in d})
     return keys
