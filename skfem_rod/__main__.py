@@ -15,7 +15,13 @@ The examples (scenes and demo scripts) are installed with the package
 
 Exit codes: 0 success, 2 bad input (the message is printed, no traceback),
 3 the solve stopped before the end of the load path (the converged steps
-are written, and where it stopped is printed).  The scene format is in
+are written, and where it stopped is printed), 130 interrupted (Ctrl-C)
+and 143 terminated (SIGTERM), the steps converged so far written.
+
+``run`` checks the output directory before it solves (and removes the
+files an earlier run of the same basename left there), then writes every
+converged step as it arrives: the ``.pvd`` lists exactly the complete VTU
+files, so a run stopped at any point leaves a readable series.  The scene format is in
 docs/scenes.md.
 """
 import argparse
@@ -244,7 +250,7 @@ def cmd_sweep(args):
     try:
         from .sweeps import sweep, sweep_directory
         ds = sweep(scene, out=args.out, scheduler=args.scheduler, n_workers=args.workers,
-                   resume=not args.restart)
+                   resume=not args.restart, centreline=args.centreline)
     except ModuleNotFoundError as err:
         _err(f"sweeps need the optional package {err.name!r}: pip install "
              "'skfem_rod[sweep]'")
@@ -337,7 +343,8 @@ def parser():
         prog="skfem-rod",
         description="Geometrically exact rods with self-contact: solve TOML scenes "
                     "(format: docs/scenes.md) and run the demos.",
-        epilog="exit codes: 0 success, 2 bad input, 3 the solve stopped early")
+        epilog="exit codes: 0 success, 2 bad input, 3 the solve stopped early, "
+               "130 interrupted (Ctrl-C), 143 terminated (SIGTERM)")
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
     r = sub.add_parser(
@@ -379,6 +386,8 @@ def parser():
                         "(default: a local cluster)")
     w.add_argument("--workers", metavar="N", type=int,
                    help="worker processes of the local cluster (default: the CPUs)")
+    w.add_argument("--centreline", action="store_true",
+                   help="also keep the nodal positions of every step (larger files)")
     w.add_argument("--restart", action="store_true",
                    help="recompute every point (default: skip the points in OUT/points)")
     w.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
