@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import validation
 from .validation import positive
 
 _NAMES = ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")
@@ -106,8 +107,8 @@ class Section:
         E = positive("E", E)
         radius = positive("radius", radius)
         try:
-            nu_f = float(nu)
-        except (TypeError, ValueError):
+            nu_f = float(nu) if validation._is_real(nu) else np.nan   # no bools, no strings
+        except (TypeError, ValueError, OverflowError):
             nu_f = np.nan
         if not (np.isfinite(nu_f) and -1 < nu_f < 0.5):
             raise ValueError(f"nu must be a number in (-1, 0.5), got {nu!r}")
