@@ -598,14 +598,15 @@ class Rod:
         """
         from dataclasses import fields
         from .contact import ContactOptions
-        eps = self.section.radius if radius is None else radius
-        if eps is None:
-            raise ValueError("contact needs a radius: give radius=... or a Section with radius")
-        eps = validation.positive("radius", eps)
+        if radius is not None:
+            radius = validation.positive("radius", radius)
         if penalty is not None:
             penalty = validation.positive("penalty", penalty)
         if exclusion is not None:
             exclusion = validation.positive("exclusion", exclusion)
+        eps = self.section.radius if radius is None else radius
+        if eps is None:
+            raise ValueError("contact needs a radius: give radius=... or a Section with radius")
         allowed = [f.name for f in fields(ContactOptions)
                    if f.name not in ("radius", "penalty", "exclusion")]
         unknown = sorted(set(options) - set(allowed))
