@@ -191,3 +191,16 @@ def test_pressed_crossing_converges_to_no_penetration(angle):
     # the contact force balances the springs: about k times the overlap
     # shared by the nodes of the two strands
     assert fN.sum() > 0
+
+
+def test_min_distance_on_a_closed_rod_does_not_depend_on_the_closure_point():
+    """The pinched ring of tests/test_contact_search.py with its closure
+    point at the waist or elsewhere: the same closest approach."""
+    from test_contact_search import _pinched_ring
+    out = []
+    for shift in (0, 7, 48):
+        rod, r = _pinched_ring(96, 0.05, shift)
+        md = min_distance(rod.mesh, r, 0.05, np.pi * 0.05)
+        assert arc_distance(md.s, md.s_bar, rod.length) >= np.pi * 0.05
+        out.append(md.distance)
+    assert np.ptp(out) < 1e-12 and out[0] < 2 * 0.05
