@@ -748,10 +748,6 @@ def _shape(g):
         if np.linalg.norm(np.cross(t, d1)) < 1e-8 * np.linalg.norm(t) * np.linalg.norm(d1):
             raise SceneError([f"rod.geometry.d1 = {_show(g['d1'])}: expected a vector "
                               f"not parallel to direction = {_show(g['direction'])}"])
-    if g["type"] == "polyline" and g["d1"] is not None \
-            and len(g["d1"]) != len(g["points"]):
-        raise SceneError([f"rod.geometry.d1: expected one director per point "
-                          f"({len(g['points'])}), got {len(g['d1'])}"])
     return _call("rod.geometry", list(kw), getattr(geometry, g["type"]), **kw)
 
 
@@ -771,22 +767,6 @@ def _section(s):
     else:
         f = Section
     return _call("section", list(kw) + ["matrix"], f, **kw)
-
-
-def _claim(claims, node, comps, who, prescribed):
-    """Record that support ``who`` holds components ``comps`` (0-2 position,
-    3-5 rotation) of ``node``; several supports may hold one component only
-    if none of them prescribes a motion."""
-    for comp in comps:
-        prev = claims.get((node, comp))
-        if prev is not None and (prev[1] or prescribed):
-            what = "position" if comp < 3 else "rotation"
-            raise SceneError([
-                f"{who} and {prev[0]} both hold the {what} component {comp % 3} of node "
-                f"{node}, and one of them prescribes its motion: a prescribed component "
-                "must be held by one support only (remove one of them, or give it "
-                "other components)"])
-        claims[(node, comp)] = (who, prescribed)
 
 
 def _same_basis(bases, node, axes, who):
@@ -822,17 +802,11 @@ def _build(d):
                               f"[0, {rod.length:g}] (the rod length)"])
         return _call(path, ["where"], rod.node, where)
 
-    claims, bases = {}, {}
-    for k, sup in enumerate(d["support"]):
+    bases = {}
+    for k, sup in enumerate(d["support"]):      # conflicts: Rod's own check (Support.hold)
         path, kind = f"support[{k}]", sup["kind"]
         n = node(path, sup["where"])
-        comps = sup.get("components", [0, 1, 2])
         who = f"{path} ({kind} at {_show(sup['where'])})"
-        if kind in ("clamp", "prescribe_rotation"):
-            comps = range(3, 6) if kind == "prescribe_rotation" else range(6)
-        elif kind == "fix_rotation":
-            comps = [3 + i for i in comps]
-        _claim(claims, n, comps, who, kind.startswith("prescribe"))
         args = {k: v for k, v in sup.items() if k not in ("kind", "where", "axes")}
         if "axes" in sup:                  # pin, fix_rotation, prescribe_displacement
             _same_basis(bases, n, sup["axes"], who)
