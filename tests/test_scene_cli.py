@@ -119,6 +119,7 @@ def problem(d):
 # ---------------------------------------------------------------------------
 # example scenes
 # ---------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SMALL))
 def test_example_scene_loads_runs_and_writes_what_it_asks(name, tmp_path):
     scene = load_scene(SCENES / f"{name}.toml")             # the file as shipped
@@ -138,6 +139,7 @@ def test_example_scene_loads_runs_and_writes_what_it_asks(name, tmp_path):
     assert set(data["files"]) == {p.name for p in tmp_path.iterdir()}
 
 
+@pytest.mark.slow
 def test_bend45_scene_reproduces_the_verified_tip():
     """docs/verification.md, 45-degree bend, 8 elements, P = 600."""
     result = load_scene(SCENES / "bend45.toml").solve()
@@ -146,6 +148,7 @@ def test_bend45_scene_reproduces_the_verified_tip():
     np.testing.assert_allclose(tip, [15.68479966, 47.15043872, 53.47485879], atol=2e-8)
 
 
+@pytest.mark.slow
 def test_rollup_scene_closes_the_circle_and_hairpin_touches(tmp_path):
     roll = load_scene(small("rollup", tmp_path), name="rollup").solve()
     assert np.linalg.norm(roll.nodes()[1][-1]) < 1e-4        # tip back at the clamp
@@ -288,8 +291,8 @@ def test_inconsistent_boundary_conditions():
     d["support"].append({"where": "start", "kind": "prescribe_displacement",
                          "displacement": [0.1, 0.0, 0.0], "components": [0]})
     msg = problem(d)
-    assert msg.startswith("support[2] (prescribe_displacement at \"start\") and support[0] "
-                          "(pin at \"start\") both hold the position component 0 of node 0")
+    assert msg.startswith("support[2]: prescribe_displacement('start') conflicts with "
+                          "pin('start') at node 0: both hold the position component 0")
     # contact needs a radius
     d = with_(with_(BASE, ["section", "radius"], DELETE), ["contact", "enabled"], True)
     assert problem(d).startswith("contact.radius is missing")
@@ -414,6 +417,7 @@ def test_variants_are_valid():
                  st.dictionaries(st.sampled_from(KEYS) | st.text(max_size=4),
                                  VALUES | st.none(), max_size=6),
                  VALUES.filter(lambda v: not isinstance(v, str))))    # a str is a path
+@pytest.mark.slow
 def test_load_scene_raises_only_value_error(d):
     try:
         scene = load_scene(d)
@@ -463,6 +467,7 @@ def test_cli_run_success_writes_and_reports(tmp_path, capsys):
     assert cli.main(["check", str(path)]) == 0
 
 
+@pytest.mark.slow
 def test_cli_progress_lines_only_on_a_terminal(tmp_path, capsys, monkeypatch):
     d = with_(read("hairpin_contact"), ["output"], DELETE)
     d["rod"]["n_elements"], d["solver"]["n_steps"] = SMALL["hairpin_contact"]
