@@ -259,8 +259,12 @@ def polyline(points, d1=None):
     P = _points("points", points, minimum=2)
     D = None if d1 is None else _points("d1", d1, n=len(P))
     chord = np.r_[0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
-    if np.any(np.diff(chord) <= 0):
-        raise ValueError("points must be distinct consecutive points")
+    gaps = np.diff(chord)
+    if np.any(~(gaps > 1e-9 * chord[-1])):
+        k = int(np.argmin(gaps))
+        raise ValueError(f"points must be distinct consecutive points: points {k} and "
+                         f"{k + 1} are {gaps[k]:.3g} apart, less than 1e-9 of the polyline's "
+                         f"length {chord[-1]:.3g}")
     spl = CubicSpline(chord, P)
     u = np.linspace(0, chord[-1], 200 * len(P))
     sp_u = np.r_[0, np.cumsum(np.linalg.norm(np.diff(spl(u), axis=0), axis=1))]

@@ -278,3 +278,18 @@ def test_nul_byte_in_output_names(solved, tmp_path):
     with pytest.raises(ValueError, match=r"^path .* contains a NUL byte"):
         solved.write_vtu(str(tmp_path / "x\0.vtu"))
     assert not list(tmp_path.iterdir())
+
+
+def test_polyline_points_nearly_coincident():
+    """Found by the fuzz: points 1e-40 apart passed and made the spline
+    ill-conditioned (rcond 1e-46)."""
+    with pytest.raises(ValueError, match=r"^points must be distinct consecutive points: "
+                                         r"points 0 and 1 are 1e-40 apart"):
+        geometry.polyline([[0, 0, 0], [1e-40, 0, 0], [1, 1, 0]])
+
+
+@pytest.mark.parametrize("nu", [False, True, "0.3", None])
+def test_circle_nu_is_a_number(nu):
+    """Found by the fuzz: nu=False was taken as 0."""
+    with pytest.raises(ValueError, match=r"^nu must be a number in \(-1, 0.5\)"):
+        Section.circle(E=1e7, nu=nu, radius=0.01)
