@@ -36,10 +36,11 @@ def _components(components):
 
 _flag = validation.flag
 
-#: bytes a solve needs per element at ``n_quad`` Gauss points (measured:
-#: about 72 kB per element at 3 points, mesh, bases, tangent and its
-#: factorization), for the memory estimate of :class:`Rod`
-_BYTES_PER_ELEMENT = (20e3, 20e3)
+#: bytes a solve needs per element: a part independent of ``n_quad`` and one
+#: per 3 Gauss points (measured peak: 72 kB per element at 3 points, mesh,
+#: bases, tangent and its factorization, 20,000 and 80,000 elements), for the
+#: memory estimate of :class:`Rod`
+_BYTES_PER_ELEMENT = (36e3, 36e3)
 #: bytes kept per node and load step (positions, rotations, reactions)
 _BYTES_PER_NODE_STEP = 12 * 8
 #: reference-shape check: largest distance between the P3-interpolated

@@ -18,8 +18,17 @@ MAX_ELEMENTS = 2_000_000
 MAX_QUAD = 32
 #: largest number of load steps of a solve (each converged step is kept)
 MAX_STEPS = 1_000_000
-#: memory a model may ask for before it is refused (bytes)
-MEMORY_LIMIT = 8 * 2**30
+def _physical_memory():
+    try:
+        import os
+        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
+
+
+#: memory a model may ask for before it is refused (bytes): the machine's
+#: physical memory (8 GiB where it cannot be read)
+MEMORY_LIMIT = _physical_memory()
 
 
 def _is_real(value):

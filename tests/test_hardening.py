@@ -293,3 +293,15 @@ def test_circle_nu_is_a_number(nu):
     """Found by the fuzz: nu=False was taken as 0."""
     with pytest.raises(ValueError, match=r"^nu must be a number in \(-1, 0.5\)"):
         Section.circle(E=1e7, nu=nu, radius=0.01)
+
+
+def test_rod_beyond_the_memory_limit_is_refused_before_allocating(monkeypatch):
+    from skfem_rod import validation
+    monkeypatch.setattr(validation, "MEMORY_LIMIT", 2**30)
+    with pytest.raises(ValueError, match=r"^a rod of n_elements=100000 \(n_quad=3\) would "
+                                         r"need about 6.7 GiB of memory, more than the "
+                                         r"limit of 1 GiB"):
+        Rod(geometry.straight(1.0), SEC, 100_000)
+    with pytest.raises(ValueError, match=r"keeping n_steps=1000000 steps of 13 nodes would "
+                                         r"need about 1.16 GiB"):
+        cantilever().check_steps(10**6)
