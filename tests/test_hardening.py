@@ -299,7 +299,7 @@ def test_rod_beyond_the_memory_limit_is_refused_before_allocating(monkeypatch):
     from skfem_rod import validation
     monkeypatch.setattr(validation, "MEMORY_LIMIT", 2**30)
     with pytest.raises(ValueError, match=r"^a rod of n_elements=100000 \(n_quad=3\) would "
-                                         r"need about 6.7 GiB of memory, more than the "
+                                         r"need about 6.71 GiB of memory, more than the "
                                          r"limit of 1 GiB"):
         Rod(geometry.straight(1.0), SEC, 100_000)
     with pytest.raises(ValueError, match=r"keeping n_steps=1000000 steps of 13 nodes would "
