@@ -246,6 +246,9 @@ class Rod:
             if where not in ("start", "end"):
                 raise ValueError(f"where must be 'start', 'end' or a nodal arclength, got {where!r}")
             return self.mesh.end_nodes[0 if where == "start" else 1]
+        if not validation._is_real(where):            # True is not the arclength 1
+            raise ValueError("where must be 'start', 'end' or a nodal arclength, "
+                             f"got {where!r}")
         try:
             s = float(where)
         except (TypeError, ValueError):

@@ -305,3 +305,12 @@ def test_rod_beyond_the_memory_limit_is_refused_before_allocating(monkeypatch):
     with pytest.raises(ValueError, match=r"keeping n_steps=1000000 steps of 13 nodes would "
                                          r"need about 1.16 GiB"):
         cantilever().check_steps(10**6)
+
+
+@pytest.mark.parametrize("where", [True, False, np.bool_(True)])
+def test_where_is_not_a_bool(where):
+    """True was taken as the arclength 1 (the end of a unit rod)."""
+    rod = cantilever()
+    with pytest.raises(ValueError, match=r"^where must be 'start', 'end' or a nodal arclength"):
+        rod.add_force(where, [0.0, 1.0, 0.0])
+    assert not rod.point_loads
