@@ -12,7 +12,6 @@ from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import law
 from skfem_rod.contact.crossing import (carry, closest_points, crossing_pairs, crossing_work,
                                         min_distance)
-from skfem_rod.contact.assembly import contact_work
 from skfem_rod.contact.search import _coefficients, arc_distance, search, slave_points
 from skfem_rod.element import shape_functions
 from skfem_rod.mesh import RodMesh
