@@ -84,9 +84,21 @@ def flag(name, value):
     return bool(value)
 
 
+def _has_bool(value):
+    """True if ``value`` is (or holds, nested in lists or tuples) a bool."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype == bool
+    if isinstance(value, (list, tuple)):
+        return any(_has_bool(v) for v in value)
+    return False
+
+
 def finite_vector(name, value, nonzero=False):
-    """A finite 3-vector of numbers (not all zero with ``nonzero``)."""
-    if isinstance(value, (str, bytes)):
+    """A finite 3-vector of numbers (not all zero with ``nonzero``; bools are
+    not numbers)."""
+    if isinstance(value, (str, bytes)) or _has_bool(value):
         raise ValueError(f"{name} must be a finite 3-vector of numbers, got {_show(value)}")
     try:
         v = np.asarray(value, dtype=float)
@@ -106,7 +118,7 @@ def points(name, value, minimum=1, n=None):
     """A finite ``(m, 3)`` array of numbers with ``m >= minimum`` (or
     exactly ``n`` rows when given)."""
     what = f"{n}" if n is not None else f"m >= {minimum}"
-    if isinstance(value, (str, bytes)):
+    if isinstance(value, (str, bytes)) or _has_bool(value):
         raise ValueError(f"{name} must be a finite (m, 3) array of numbers ({what}), "
                          f"got {_show(value)}")
     try:

@@ -32,6 +32,7 @@ ANYTHING = st.one_of(
                      [1.0, 2.0], [0, 0, 0], [[1, 2, 3]], np.float64(0.5), np.array(1.0),
                      np.array([1.0, 2.0, 3.0]), "start", "end", 0.5, (0, 2), [3], (0.5,)]),
     st.lists(st.floats(-1e3, 1e3), min_size=0, max_size=4),
+    st.lists(st.one_of(st.booleans(), st.integers(-3, 3)), min_size=3, max_size=3),
 )
 
 
@@ -44,7 +45,8 @@ def positive(v):
 
 
 def vector(v, nonzero=False):
-    if isinstance(v, (str, bytes)):
+    if isinstance(v, (str, bytes)) or (isinstance(v, (list, tuple))
+                                       and any(isinstance(x, (bool, np.bool_)) for x in v)):
         return False
     try:
         a = np.asarray(v)
@@ -115,7 +117,8 @@ COMPONENTS = (st.sampled_from([(0,), (1, 2), (0, 1, 2)]),
 def api_example(data):
     kind = data.draw(st.sampled_from(["straight", "arc", "helix", "polyline"]))
     if kind == "straight":
-        ok, shape = call(data, geometry.straight, "straight", length=POS, start=VEC,
+        ok, shape = call(data, geometry.straight, "straight",
+                         length=(st.one_of(st.just(1.0), POS[0]), positive), start=VEC,
                          direction=VECNZ)
     elif kind == "arc":
         ok, shape = call(data, geometry.arc, "arc", radius=POS,

@@ -314,3 +314,13 @@ def test_where_is_not_a_bool(where):
     with pytest.raises(ValueError, match=r"^where must be 'start', 'end' or a nodal arclength"):
         rod.add_force(where, [0.0, 1.0, 0.0])
     assert not rod.point_loads
+
+
+@pytest.mark.parametrize("value", [[True, 0, 0], np.array([True, False, False]),
+                                   (0.0, 1.0, False)])
+def test_vectors_of_bools_are_not_numbers(value):
+    rod = cantilever()
+    with pytest.raises(ValueError, match=r"^force must be a finite 3-vector of numbers"):
+        rod.add_force("end", value)
+    with pytest.raises(ValueError, match=r"^start must be a finite 3-vector of numbers"):
+        geometry.straight(1.0, start=value)
