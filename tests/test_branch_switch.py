@@ -10,6 +10,8 @@ import pytest
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.continuation import follow, switch_branch
 
+pytestmark = pytest.mark.slow    # a scene or a long run (fast tier: -m "not slow")
+
 EI, L = 1.0, 1.0
 SEC = Section(EA=1e7, GA1=1e7, GA2=1e7, EI1=EI, EI2=2 * EI, GJ=1.0, radius=0.01)
 P_CR = np.pi ** 2 * EI / (4 * L ** 2)

@@ -80,6 +80,7 @@ def test_closed_rod_bad_input():
         geometry.closed("ring")
 
 
+@pytest.mark.slow
 def test_twisted_ring_folds_into_three_loops(tmp_path):
     demo = load_demo("twisted_ring")
     summary = demo.main(str(tmp_path), **demo.SMALL)

@@ -45,6 +45,7 @@ def test_plectoneme_shape():
         geometry.plectoneme(0.98, 0.3, 3, loop=1.0)
 
 
+@pytest.mark.slow
 def test_candidates_and_active_pairs_grow_linearly():
     sizes = np.array([50, 100, 200, 400, 800])
     cand, active = [], []

@@ -61,6 +61,7 @@ def arch_limit_load_bvp():
     return -best.fun / LOAD
 
 
+@pytest.mark.slow
 def test_arch_limit_point_passed_and_located():
     rod = arch()
     crown = rod.node(rod.length / 2)
@@ -91,6 +92,7 @@ def test_arch_limit_point_passed_and_located():
     assert np.all(np.diff(res.arclengths) > 0)
 
 
+@pytest.mark.slow
 def test_twist_buckling_under_tension_detected_without_imperfection():
     """Clamped rod, end on the axis under a constant dead tension, end turned
     about the axis: along the straight twisted branch (no imperfection) the
@@ -140,6 +142,7 @@ def test_rod_solve_arclength_switch_and_bad_input():
         follow(rod, stability=True)
 
 
+@pytest.mark.slow
 def test_plot_path_marks_stability(tmp_path):
     rod = arch(8)
     crown = rod.node(rod.length / 2)

@@ -52,6 +52,7 @@ def assert_not_blank(img, what):
     assert foreground.mean() > 0.01, f"{what}: only {foreground.mean():.2%} of the pixels drawn"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", gallery.demo_names())
 def test_demo_runs_headless_at_small_size(name, tmp_path):
     module = gallery.load(name)
@@ -102,6 +103,7 @@ def test_bend45_tip_matches_the_shooting_reference(tmp_path):
     assert data["tip_errors"] == errors
 
 
+@pytest.mark.slow
 def test_gallery_writes_thumbnails_and_index(tmp_path):
     index = gallery.main(out=tmp_path, names=["bend45"])
     assert set(index) == {"bend45"}

@@ -169,6 +169,7 @@ def test_public_api_has_numpydoc_docstrings_with_examples():
     assert missing == [], "public objects without an example in the docstring"
 
 
+@pytest.mark.slow
 def test_public_api_docstring_examples_pass(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     import matplotlib

@@ -19,6 +19,7 @@ def rotational():
     return rf.solve(n_elements=32, n_steps=8, phi=0.06)
 
 
+@pytest.mark.slow
 def test_rotational_friction_saturates_at_gamma_R_FN(rotational):
     """The torque transmitted through the contact stretch, measured from
     the equilibrium (end couple minus the twisting moment at the cut),
@@ -45,6 +46,7 @@ def test_rotational_friction_saturates_at_gamma_R_FN(rotational):
         assert np.all(st.contact.force_T == 0)
 
 
+@pytest.mark.slow
 def test_rotational_scene_obeys_coulomb_at_every_step(rotational):
     res = rotational["result"]
     coulomb_checks(res, 0.0, rf.EPS)
@@ -72,6 +74,7 @@ def test_friction_off_runs_no_friction_code_and_equals_frictionless(monkeypatch)
     assert res.steps[-1].contact.force_T is None
 
 
+@pytest.mark.slow
 def test_dissipated_energy_and_stick_slip_render(rotational, tmp_path):
     """The cumulative friction work never decreases along the path, and the
     render colours the contact markers by state (all slip: orange)."""
@@ -98,6 +101,7 @@ def plectoneme_cycle():
     return pf.solve(0.3, n_elements=16, turns=1.5, n_steps=6)
 
 
+@pytest.mark.slow
 def test_plectoneme_cycle_with_friction(plectoneme_cycle):
     res, rec = plectoneme_cycle["result"], plectoneme_cycle["records"]
     assert res.converged, res.message

@@ -46,6 +46,7 @@ def runs(tied):
     return {g: knot.solve(g, PULL, N_EL, STEPS, start=tied) for g in (0.0, GAMMA)}
 
 
+@pytest.mark.slow
 def test_tied_knot_is_a_tight_knot_in_tension(tied):
     """Tying (step 0 from the stressed start shape): the knot keeps its
     topology (link -2.5 turns, as in the start shape), closes on itself
@@ -60,6 +61,7 @@ def test_tied_knot_is_a_tight_knot_in_tension(tied):
     assert w["force"] > 0
 
 
+@pytest.mark.slow
 def test_knot_is_kept_and_contact_is_resolved(runs):
     """Along the whole path: converged with Uzawa within its tolerance, the
     link unchanged (the ends are clamped, so a strand passing through
@@ -86,6 +88,7 @@ def _branches(rows):
     return np.array(out).T
 
 
+@pytest.mark.slow
 def test_friction_makes_tightening_force_exceed_loosening_force(runs):
     """At the same end distance, with gamma_T > 0 the tightening force
     exceeds the loosening force, by more than the frictionless force
@@ -103,6 +106,7 @@ def test_friction_makes_tightening_force_exceed_loosening_force(runs):
     assert width.min() > 1.0
 
 
+@pytest.mark.slow
 def test_knot_obeys_coulomb_at_every_step(runs):
     res = runs[GAMMA]["result"]
     coulomb_checks(res, GAMMA, 0.0)

@@ -40,6 +40,7 @@ def _pressed(F, **options):
     return res, res.steps[-1].r[rod.node("end")][1] / eps
 
 
+@pytest.mark.slow
 def test_clearance_cap_keeps_a_pressed_leg_on_the_other_side():
     """A hairpin whose free leg (4 eps from the clamped one) is pressed by
     a large force in two steps: the first Newton update, with no contact in

@@ -213,6 +213,7 @@ ROWS = st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True),
                  st.builds(lambda v, s: (expm(np.array(v)).T * np.array(s)[:, None]).tolist(),
                            st.lists(st.floats(-4, 4), min_size=3, max_size=3),
                            st.lists(st.floats(1e-3, 1e3), min_size=3, max_size=3))))
+@pytest.mark.slow
 def test_any_axes_value_gives_a_basis_or_a_message_naming_the_key(axes):
     """Random values: a SceneError naming support[1].axes, or a rotation
     whose columns are the normalized axes (and the rod holds it)."""

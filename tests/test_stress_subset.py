@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow    # a scene or a long run (fast tier: -m "not slow")
+
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("stress", ROOT / "benchmarks" / "stress.py")
 stress = importlib.util.module_from_spec(_spec)

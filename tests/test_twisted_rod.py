@@ -89,7 +89,8 @@ def test_clamped_greenhill_factor_limits():
     assert demo.greenhill_factor(0.05) * 0.05 == pytest.approx(8.9868 / 2, rel=1e-3)
 
 
-@pytest.mark.parametrize("length, elements", [(50.0, 64), (10.0, 16)])
+@pytest.mark.parametrize("length, elements", [pytest.param(50.0, 64, marks=pytest.mark.slow),
+                                               (10.0, 16)])
 def test_twist_buckling_matches_greenhill(length, elements):
     gh = demo.critical_twist(length, elements)
     # the criterion: within 5 % of M_c = 2 sqrt(BT) for L/lambda >= 50
@@ -122,6 +123,7 @@ def twisted():
     return demo.solve(length=LENGTH, n_elements=36, radius=RADIUS, turns=2.7, n_steps=27)
 
 
+@pytest.mark.slow
 def test_twisted_rod_straight_then_greenhill(twisted):
     assert twisted["converged"], twisted["message"]
     rec = twisted["records"]
@@ -139,6 +141,7 @@ def test_twisted_rod_straight_then_greenhill(twisted):
     assert n[first - 1] < n_c <= n[first]
 
 
+@pytest.mark.slow
 def test_twisted_rod_link_and_contact_law_at_every_step(twisted):
     rod = twisted["rod"]
     tol = rod.contact.tolerance * rod.contact.radius
@@ -160,6 +163,7 @@ def test_twisted_rod_link_and_contact_law_at_every_step(twisted):
                                             rel=1e-3)   # measured 3e-4
 
 
+@pytest.mark.slow
 def test_twisted_rod_snaps_into_a_plectoneme_with_a_torque_plateau(twisted):
     rec = twisted["records"]
     ana = demo.analyse(rec, LENGTH, RADIUS, plateau_from=2.0)

@@ -9,6 +9,8 @@ import pytest
 
 from helpers import load_demo as load
 
+pytestmark = pytest.mark.slow    # a scene or a long run (fast tier: -m "not slow")
+
 
 demo = load("two_ply")
 

@@ -22,6 +22,7 @@ def _hairpin(growth):
     return rod, rod.solve(n_steps=4)
 
 
+@pytest.mark.slow
 def test_adaptive_penalty_needs_fewer_updates_for_the_same_answer():
     eps = SEC.radius
     rod, fixed = _hairpin(1.0)
@@ -45,6 +46,7 @@ def test_adaptive_penalty_needs_fewer_updates_for_the_same_answer():
     assert a.contact.total_force == pytest.approx(b.contact.total_force, rel=1e-2)
 
 
+@pytest.mark.slow
 def test_adaptive_penalty_with_friction_same_coulomb_answer():
     """The rotational-friction scene (16 elements, two steps): fewer Uzawa
     updates with the adaptive penalty, both within the tolerances, and the

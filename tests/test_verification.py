@@ -234,6 +234,7 @@ def bend():
     return fe, bend_shooting()
 
 
+@pytest.mark.slow
 def test_bend_reference_state(bend):
     fe, _ = bend
     rod, res = fe[8][:2]
@@ -250,6 +251,7 @@ def test_bend_reference_state(bend):
     np.testing.assert_allclose(f["v0"], [[0, 0, 1]] * 7, atol=2e-5)
 
 
+@pytest.mark.slow
 def test_bend_against_shooting_solution(bend):
     fe, ref = bend
     print()
@@ -264,6 +266,7 @@ def test_bend_against_shooting_solution(bend):
             assert err < 2e-6 * (8 / n) ** 4
 
 
+@pytest.mark.slow
 def test_bend_converges_under_refinement(bend):
     fe, ref = bend
     tips = np.array([fe[n][2][600.0] for n in BEND_ELEMENTS])
@@ -275,6 +278,7 @@ def test_bend_converges_under_refinement(bend):
     assert np.all((rates > 3.5) & (rates < 4.5))
 
 
+@pytest.mark.slow
 def test_bend_against_published_tips(bend):
     """Published 8-element tips at P = 600: Simo & Vu-Quoc (1986)
     (15.79, 47.23, 53.37), Bathe & Bolourchi (1979) (15.9, 47.2, 53.4).
@@ -393,6 +397,7 @@ def slenderness():
     return {(ratio, nq): slender_tip_error(ratio, nq) for ratio in SLENDERNESS for nq in (3, 4)}
 
 
+@pytest.mark.slow
 def test_slenderness_no_locking(slenderness):
     print("\nL/radius   tip error 3-point   tip error 4-point")
     for ratio in SLENDERNESS:
@@ -401,6 +406,7 @@ def test_slenderness_no_locking(slenderness):
         assert slenderness[ratio, 3] < 1e-6
 
 
+@pytest.mark.slow
 def test_full_integration_locks(slenderness):
     # measured: 3.6e-7, 3.5e-5, 9.9e-4, 1.6e-3 with 4 points against
     # 1.0e-9 at every ratio with 3 points
