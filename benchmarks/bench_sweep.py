@@ -62,7 +62,7 @@ def time_dask(scene, params, n_workers):
     finally:
         shutil.rmtree(out, ignore_errors=True)
     assert bool(ds.converged.all())
-    return wall, float(ds.wall_time.sum())
+    return wall, float(ds.wall_time.sum()), float(ds.cpu_time.sum())
 
 
 def time_loop_solves(scene, params):
@@ -71,7 +71,7 @@ def time_loop_solves(scene, params):
     recs = [run_point(p.data, "bench", p.values) for p in pts]
     wall = time.perf_counter() - t0
     assert all(r["converged"] for r in recs)
-    return wall, sum(r["wall_time"] for r in recs)
+    return wall, sum(r["wall_time"] for r in recs), sum(r["cpu_time"] for r in recs)
 
 
 def time_cluster():
@@ -93,18 +93,21 @@ def main(argv=None):
     time_loop_solves(scene, {k: v[:1] for k, v in params.items()})   # warm the imports
     runs = {"loop": [], "dask-1": [], "dask-2": [], "cluster": []}
     solves = {"loop": [], "dask-1": [], "dask-2": []}      # sum of the points' solve times
+    cpus = {"loop": [], "dask-1": [], "dask-2": []}        # and of their CPU times
     for r in range(args.repeat):
         for name, f in (("loop", lambda: time_loop_solves(scene, params)),
                         ("dask-2", lambda: time_dask(scene, params, 2)),
                         ("dask-1", lambda: time_dask(scene, params, 1))):
-            wall, solve = f()
+            wall, solve, cpu = f()
             runs[name].append(wall)
             solves[name].append(solve)
+            cpus[name].append(cpu)
         runs["cluster"].append(time_cluster())
         print(f"repeat {r + 1}: " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in runs.items()),
               flush=True)
     med = {k: statistics.median(v) for k, v in runs.items()}
     med_solve = {k: statistics.median(v) for k, v in solves.items()}
+    med_cpu = {k: statistics.median(v) for k, v in cpus.items()}
     n = args.points
     speedup = med["loop"] / med["dask-2"]
     overhead = (med["dask-1"] - med["loop"]) / n
@@ -127,8 +130,9 @@ def main(argv=None):
         "24-element cantilever, 8 load steps each); medians of "
         f"{args.repeat} repeats (s):",
         "",
-        "| run | median (s) | runs (s) | points' solve times, summed (median, s) |",
-        "| --- | ---: | --- | ---: |",
+        "| run | median (s) | runs (s) | points' solve times, summed (median, s) "
+        "| their CPU times, summed (median, s) |",
+        "| --- | ---: | --- | ---: | ---: |",
     ]
     what = {"loop": "plain loop of run_point (serial, no Dask)",
             "dask-1": "skfem_rod.sweep, LocalCluster of 1 worker",
@@ -137,7 +141,8 @@ def main(argv=None):
     for k in runs:
         lines.append(f"| {what[k]} | {med[k]:.2f} | "
                      + ", ".join(f"{v:.2f}" for v in runs[k])
-                     + (f" | {med_solve[k]:.2f} |" if k in med_solve else " | |"))
+                     + (f" | {med_solve[k]:.2f} | {med_cpu[k]:.2f} |" if k in med_solve
+                        else " | | |"))
     lines += [
         "",
         f"- speed-up of 2 workers over the serial loop: **{speedup:.2f}x** "
@@ -147,8 +152,11 @@ def main(argv=None):
         f"{med['cluster'] / n:.2f} s; the rest, {per_point:.3f} s per point, is "
         "scheduling, worker imports, the point files and the dataset",
         f"- the points' own solve times, summed: loop {med_solve['loop']:.2f} s, "
-        f"1 worker {med_solve['dask-1']:.2f} s, 2 workers {med_solve['dask-2']:.2f} s "
-        "(on a machine shared with other jobs two workers get less than two cores)",
+        f"1 worker {med_solve['dask-1']:.2f} s, 2 workers {med_solve['dask-2']:.2f} s; "
+        "the share of a core a solving process got (CPU / wall time): "
+        + ", ".join(f"{k} {med_cpu[k] / med_solve[k]:.2f}" for k in med_solve)
+        + " (the machine is shared with other jobs: with less than two free cores, "
+        "two workers cannot halve the time)",
         "",
     ]
     path = os.path.join(args.out, "RESULTS_sweep.md")

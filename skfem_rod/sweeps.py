@@ -248,12 +248,15 @@ class SweepPoint:
     key: str
 
 
-def point_key(data):
+def point_key(data, centreline=False):
     """Stable hash of a validated scene's content (what the solve sees:
-    not its title, outputs or sweep) and of the skfem_rod version."""
+    not its title, outputs or sweep), of the skfem_rod version and of
+    whether the point keeps its centreline."""
     from . import __version__
     content = {k: v for k, v in data.items() if k not in ("title", "output", "sweep")}
-    text = json.dumps([FORMAT, __version__, content], sort_keys=True, default=float)
+    text = json.dumps([FORMAT, __version__, content] + ([{"centreline": True}] if centreline
+                                                         else []),
+                      sort_keys=True, default=float)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -265,7 +268,7 @@ def _base(scene):
     return scene.data, scene.name, scene.source
 
 
-def sweep_points(scene, parameters=None, mode=None):
+def sweep_points(scene, parameters=None, mode=None, centreline=False):
     """The points of a sweep, in dataset order.
 
     Parameters
@@ -276,6 +279,8 @@ def sweep_points(scene, parameters=None, mode=None):
         Dotted key -> values (replaces the scene's ``[sweep]`` table).
     mode : {"grid", "zip"}, optional
         Default: the ``[sweep]`` table's, else ``"grid"``.
+    centreline : bool
+        The points keep their centreline (part of their key).
 
     Returns
     -------
@@ -324,7 +329,7 @@ def sweep_points(scene, parameters=None, mode=None):
         for k, v in zip(keys, vals):
             d = _put(d, parse_key(k), v)
         points.append(SweepPoint(tuple(idx), dict(zip(keys, vals)), d,
-                                 point_key(_validate(d))))
+                                 point_key(_validate(d), centreline)))
     return points, spec
 
 
@@ -384,18 +389,20 @@ STEP_VARIABLES = {
 }
 
 
-def run_point(data, name="scene", values=None, on_step=None):
+def run_point(data, name="scene", values=None, on_step=None, centreline=False):
     """Load and solve one point's scene table; returns its record: the
     per-step arrays of :data:`STEP_VARIABLES` (converged steps only) and
-    ``converged``, ``message``, ``n_steps``, ``wall_time``.  Never raises:
-    a scene the loader rejects, a solve that stops or an exception are
+    ``converged``, ``message``, ``n_steps``, ``wall_time``, ``cpu_time``.
+    Never raises: a scene the loader rejects, a solve that stops or an exception are
     recorded in ``message`` (with the steps converged before).
 
     ``on_step(values, result, k)``, if given, is called after each
-    converged step ``k`` (on the worker).
+    converged step ``k`` (on the worker).  With ``centreline``, the record
+    also holds the nodal ``arclength`` and the ``centreline`` positions of
+    every step.
     """
     from .scene import load_scene
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     kept = {}
 
     def callback(result, k):
@@ -420,8 +427,11 @@ def run_point(data, name="scene", values=None, on_step=None):
         for row, d in zip(rows, diss):
             row["dissipation"] = float(d)
     rec = {name_: np.array([row[name_] for row in rows]) for name_ in STEP_VARIABLES}
+    if centreline and rows:
+        rec["arclength"] = result.nodes(0)[0]
+        rec["centreline"] = np.array([result.nodes(k)[1] for k in range(len(rows))])
     rec.update(converged=converged, message=message, n_steps=len(rows),
-               wall_time=time.perf_counter() - t0)
+               wall_time=time.perf_counter() - t0, cpu_time=time.process_time() - c0)
     return rec
 
 
@@ -440,11 +450,16 @@ def point_dataset(rec, point, n_support):
         if fill is MISSING:
             a = a.astype(np.int64)
         out[name] = (("step",) + dims, a, {"long_name": long})
+    if "centreline" in rec:
+        out["arclength"] = (("node",), rec["arclength"], {"long_name": "arclength s"})
+        out["centreline"] = (("step", "node", "xyz"), rec["centreline"],
+                             {"long_name": "nodal positions r(s)"})
     ds = xr.Dataset(out)
     ds["converged"] = ((), bool(rec["converged"]))
     ds["message"] = ((), str(rec["message"]))
     ds["n_steps"] = ((), int(n))
     ds["wall_time"] = ((), float(rec["wall_time"]), {"units": "s"})
+    ds["cpu_time"] = ((), float(rec.get("cpu_time", np.nan)), {"units": "s"})
     ds.attrs.update(key=point.key, values=json.dumps(point.values),
                     index=json.dumps(list(point.index)), format=FORMAT)
     return ds
@@ -497,10 +512,24 @@ def assemble(points, spec, records, meta):
                 v = ds[name].values
                 arr[p.index][tuple(slice(0, s) for s in v.shape)] = v
         data[name] = (pdims + ("step",) + dims, arr, {"long_name": long})
+    n_node = max([ds.sizes.get("node", 0) for ds in records.values()] + [0])
+    if n_node:                            # centrelines (points may differ in nodes)
+        s = np.full(shape + (n_node,), np.nan)
+        r = np.full(shape + (n_steps, n_node, 3), np.nan)
+        for p in points:
+            ds = records.get(p.key)
+            if ds is not None and "centreline" in ds:
+                v = ds["centreline"].values
+                s[p.index][:v.shape[1]] = ds["arclength"].values
+                r[p.index][:v.shape[0], :v.shape[1]] = v
+        data["arclength"] = (pdims + ("node",), s, {"long_name": "arclength s of the nodes"})
+        data["centreline"] = (pdims + ("step", "node", "xyz"), r,
+                              {"long_name": "nodal positions r(s)"})
     conv = np.zeros(shape, bool)
     msg = np.full(shape, "not run", dtype=object)
     nst = np.zeros(shape, np.int64)
     wall = np.full(shape, np.nan)
+    cpu = np.full(shape, np.nan)
     pkey = np.full(shape, "", dtype=object)
     for p in points:
         pkey[p.index] = p.key
@@ -510,11 +539,14 @@ def assemble(points, spec, records, meta):
             msg[p.index] = str(ds["message"].values)
             nst[p.index] = int(ds["n_steps"])
             wall[p.index] = float(ds["wall_time"])
+            cpu[p.index] = float(ds["cpu_time"]) if "cpu_time" in ds else np.nan
     data.update(converged=(pdims, conv, {"long_name": "the solve reached the end of its "
                                                      "load path"}),
                 message=(pdims, msg.astype(str), {"long_name": "how the solve ended"}),
                 n_steps=(pdims, nst, {"long_name": "converged steps (step 0 included)"}),
-                wall_time=(pdims, wall, {"units": "s"}),
+                wall_time=(pdims, wall, {"units": "s", "long_name": "solve wall time"}),
+                cpu_time=(pdims, cpu, {"units": "s", "long_name": "solve CPU time of "
+                                                                  "the worker process"}),
                 point_key=(pdims, pkey.astype(str), {"long_name": "point file name"}))
     coords = {"step": np.arange(n_steps), "xyz": ["x", "y", "z"],
               "support": np.arange(n_sup)}
@@ -543,7 +575,7 @@ def open_sweep(path):
 # the sweep
 # ---------------------------------------------------------------------------
 def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers=None,
-          resume=True, progress=None, on_step=None):
+          resume=True, progress=None, on_step=None, centreline=False):
     """Solve a scene at every point of a parameter sweep on Dask.
 
     Parameters
@@ -572,6 +604,9 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
     on_step : callable, optional
         ``on_step(values, result, k)`` after each converged step, on the
         worker.
+    centreline : bool
+        Also keep the nodal positions of every step (``centreline``, dims
+        ``step, node, xyz``, and ``arclength``); off by default (large).
 
     Returns
     -------
@@ -592,7 +627,7 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
         scene = load_scene(scene)
     if n_workers is not None and not (isinstance(n_workers, int) and n_workers >= 1):
         raise ValueError(f"n_workers must be an integer >= 1, got {n_workers!r}")
-    points, spec = sweep_points(scene, parameters, mode)
+    points, spec = sweep_points(scene, parameters, mode, centreline)
     out = sweep_directory(scene, out)
     folder = os.path.join(out, POINTS_DIR)
     os.makedirs(folder, exist_ok=True)
@@ -615,7 +650,7 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
     failed_runs = {}
     if todo:
         failed_runs = _run(todo, scene.name, folder, n_sup, scheduler, n_workers,
-                           progress, on_step, total - len(todo), total)
+                           progress, (on_step, centreline), total - len(todo), total)
     records = {}
     for p in points:
         path = os.path.join(folder, p.key + ".nc")
@@ -662,7 +697,7 @@ def local_cluster(n_workers):
                             dashboard_address=":0")
 
 
-def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, on_step, done, total):
+def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, options, done, total):
     """Run the points on Dask, writing each as it finishes; returns the
     Datasets of the points lost with their workers (not written: a re-run
     tries them again)."""
@@ -678,7 +713,7 @@ def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, on_step, don
         client = scheduler
     lost = {}
     try:
-        futures = {client.submit(run_point, p.data, name, p.values, on_step,
+        futures = {client.submit(run_point, p.data, name, p.values, *options,
                                  key=f"skfem-rod-point-{p.key}", pure=False): p
                    for p in todo}
         for fut in as_completed(futures):
@@ -687,8 +722,8 @@ def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, on_step, don
                 rec = fut.result()
             except KilledWorker as err:
                 rec = dict({k: [] for k in STEP_VARIABLES}, converged=False, n_steps=0,
-                           wall_time=np.nan, message=f"the workers running this point "
-                                                     f"died: {err}")
+                           wall_time=np.nan, cpu_time=np.nan,
+                           message=f"the workers running this point died: {err}")
                 lost[p.key] = point_dataset(rec, p, n_sup)
             else:
                 write_point(point_dataset(rec, p, n_sup), folder, p.key)

@@ -273,12 +273,19 @@ def test_point_whose_worker_dies_is_rerun(tmp_path, client):
 
     scene = load_scene(write(tmp_path, SCENE))
     ds = sweeps.sweep(scene, {"load[0].vector[2]": [-0.05, -0.1]}, out=tmp_path / "out",
-                      scheduler=client, on_step=die_once)
+                      scheduler=client, on_step=die_once, centreline=True)
     assert marker.exists()
     assert bool(ds.converged.all())
     res = single(1e7, -0.1)
-    np.testing.assert_allclose(ds.energy.sel({"load[0].vector[2]": -0.1}).values[
-        :len(res.steps)], res.energies, rtol=1e-9)
+    pt = ds.sel({"load[0].vector[2]": -0.1})
+    n = len(res.steps)
+    np.testing.assert_allclose(pt.energy.values[:n], res.energies, rtol=1e-9)
+    # the centreline, kept on request: nodes along s, its end is the tip
+    assert pt.centreline.dims == ("step", "node", "xyz") and pt.sizes["node"] == 13
+    np.testing.assert_allclose(pt.arclength, np.linspace(0, 1, 13), atol=1e-12)
+    np.testing.assert_allclose(pt.centreline.values[:n, -1], pt.tip_position.values[:n])
+    np.testing.assert_allclose(pt.centreline.values[n - 1], res.nodes()[1], rtol=1e-9,
+                               atol=1e-12)
 
 
 def test_cli_sweep_refuses_bad_input(tmp_path, capsys):
