@@ -32,6 +32,7 @@ import logging
 import os
 import sys
 import time
+import warnings
 
 from . import __version__, examples
 from .scene import load_scene, step_figures
@@ -48,8 +49,9 @@ def _err(msg):
 
 def _log_to_terminal(level):
     """Show the package's log records (logger ``skfem_rod``) for one
-    command: below WARNING on stdout as plain lines, warnings on stderr.
-    Returns the function that undoes it."""
+    command: below WARNING on stdout as plain lines, warnings on stderr
+    (Python warnings too, e.g. an Uzawa shortfall, as one line without a
+    source location).  Returns the function that undoes it."""
     pkg = logging.getLogger("skfem_rod")
     out = logging.StreamHandler(sys.stdout)
     out.addFilter(lambda record: record.levelno < logging.WARNING)
@@ -62,8 +64,12 @@ def _log_to_terminal(level):
     pkg.propagate = False
     pkg.addHandler(out)
     pkg.addHandler(err)
+    showwarning = warnings.showwarning
+    warnings.showwarning = lambda message, category, *where, **kw: log.warning(
+        "%s", message)
 
     def undo():
+        warnings.showwarning = showwarning
         pkg.removeHandler(out)
         pkg.removeHandler(err)
         pkg.setLevel(before[0])

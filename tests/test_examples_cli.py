@@ -80,6 +80,27 @@ def test_run_without_output_says_it_wrote_nothing(tmp_path, capsys, monkeypatch)
     assert not [h for h in __import__("logging").getLogger("skfem_rod").handlers]
 
 
+def test_warnings_are_one_line_on_stderr_and_quiet_hides_them(tmp_path, capsys, monkeypatch):
+    import warnings
+
+    calls = []
+
+    def check(args):                       # a new text each call (warnings show once)
+        calls.append(args)
+        warnings.warn(f"Uzawa did not reach its tolerance at step {len(calls) + 2}",
+                      RuntimeWarning)
+        return 0
+    monkeypatch.setattr(cli, "cmd_check", check)
+    scene = str(ROOT / "scenes" / "rollup.toml")
+    assert cli.main(["check", scene]) == 0
+    err = capsys.readouterr().err
+    assert err == "skfem-rod: WARNING: Uzawa did not reach its tolerance at step 3\n"
+    monkeypatch.setattr(cli, "cmd_run", check)
+    assert cli.main(["run", scene, "--quiet"]) == 0                  # errors only
+    assert capsys.readouterr() == ("", "")
+    assert warnings.showwarning.__module__ == "warnings"            # restored
+
+
 def test_missing_render_extra_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
     (tmp_path / "pic.py").write_text("def main(out='x'):\n    import pyvista\n")
     monkeypatch.setattr(cli, "demos_dir", lambda: tmp_path)
