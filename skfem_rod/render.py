@@ -1081,9 +1081,11 @@ def _gif_palette(images, fixed):
     when the frames are quantized)."""
     from PIL import Image
 
+    from pyvista import Color
+
     shades = []
     for c in fixed:
-        rgb = np.array([int(c[i:i + 2], 16) for i in (1, 3, 5)], float)
+        rgb = np.array(Color(c).int_rgb, float)
         for f in (0.45, 0.6, 0.75, 0.9, 1.0):
             shades.append(np.rint(rgb * f))
         for t in (0.25, 0.5):
@@ -1239,7 +1241,7 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
         base_entries.insert(0, {"ghost": ("ghost", REFERENCE_COLOR, "reference shape"),
                                 "block": ("box", SUPPORT_COLOR, _block_label(supports)),
                                 "ball": ("dot", SUPPORT_COLOR, "pin")}[kind])
-    fixed = [color, stripe_color, CONTACT_COLOR, *STATE_COLORS]
+    fixed = [background, color, stripe_color, CONTACT_COLOR, *STATE_COLORS]
 
     images = []
     with quiet_vtk():

@@ -120,7 +120,7 @@ def main(out="output/plectoneme_friction", gammas=(0.0, 0.3), length=5.0, n_elem
         top = int(np.argmax([st.load_factor for st in res.steps]))
         png = os.path.join(out, "plectoneme_friction.png")
         res.render(png, step=top, window_size=window_size, camera=tw._camera(res.steps[top].r),
-                   radius=0.6 * res.rod.contact.radius,
+                   radius=0.6 * res.rod.contact.radius, reference=None,   # the rod shortens: no ghost
                    contact_radius=0.75 * res.rod.contact.radius,
                    title=f"plectoneme with friction γ_T = {s['gamma_T']:g}, {turns:g} turns")
         summary["renders"].append(png)
