@@ -481,6 +481,24 @@ def _read_point(path):
         return ds.load()
 
 
+def _read_points(points, folder):
+    """The Datasets of the point files of ``points`` in ``folder``; a file
+    that cannot be read (damaged outside the sweep) is removed, so that its
+    point is solved again."""
+    out = {}
+    for p in points:
+        path = os.path.join(folder, p.key + ".nc")
+        if p.key in out or not os.path.exists(path):
+            continue
+        try:
+            out[p.key] = _read_point(path)
+        except (OSError, ValueError) as err:
+            log.warning("point file %s is unreadable (%s): removed, the point is solved "
+                        "again", path, err)
+            os.remove(path)
+    return out
+
+
 def finished_keys(folder):
     """Keys of the point files in ``folder`` (temporary files ignored)."""
     if not os.path.isdir(folder):
@@ -637,27 +655,20 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
                 os.remove(os.path.join(folder, f))
             except OSError:
                 pass
-    done = finished_keys(folder) if resume else set()
+    records = _read_points(points, folder) if resume else {}   # the points done
     todo, seen = [], set()
     for p in points:
-        if p.key not in done and p.key not in seen:
+        if p.key not in records and p.key not in seen:
             todo.append(p)
             seen.add(p.key)
     n_sup = len(scene.data["support"])
     total = len(points)
     log.info("%s: %d points, %d already done, %d to run", scene.name, total,
              total - len(todo), len(todo))
-    failed_runs = {}
     if todo:
-        failed_runs = _run(todo, scene.name, folder, n_sup, scheduler, n_workers,
-                           progress, (on_step, centreline), total - len(todo), total)
-    records = {}
-    for p in points:
-        path = os.path.join(folder, p.key + ".nc")
-        if p.key in failed_runs:
-            records[p.key] = failed_runs[p.key]
-        elif os.path.exists(path):
-            records[p.key] = _read_point(path)
+        records.update(_run(todo, scene.name, folder, n_sup, scheduler, n_workers,
+                            progress, (on_step, centreline), total - len(todo), total))
+        records.update(_read_points([p for p in todo if p.key not in records], folder))
     meta = dict(scene=scene.name, title=scene.title, source=str(scene.source or ""),
                 scene_data=json.dumps(scene.data, default=float))
     ds = assemble(points, spec, records, meta)

@@ -260,6 +260,16 @@ def test_failing_points_are_recorded_and_the_others_complete(tmp_path, client):
                          mode="zip", out=tmp_path / "out", scheduler=client,
                          progress=lambda *a: seen.append(a))
     assert not seen and again.message.values.tolist() == msg.tolist()
+    # a point file damaged outside the sweep is solved again
+    damaged = tmp_path / "out" / "points" / f"{again.point_key.values[1]}.nc"
+    damaged.write_bytes(b"not a netCDF file")
+    third = sweeps.sweep(scene, {"solver.max_iterations": [1, 25, 25],
+                                 "support[0].where": ["start", "start", 0.3]},
+                         mode="zip", out=tmp_path / "out", scheduler=client,
+                         progress=lambda *a: seen.append(a))
+    assert len(seen) == 1 and seen[0][2].key == damaged.stem
+    assert third.converged.values.tolist() == [False, True, False]
+    np.testing.assert_array_equal(third.energy.values[1], again.energy.values[1])
 
 
 @pytest.mark.slow
