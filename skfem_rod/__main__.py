@@ -256,7 +256,7 @@ def cmd_sweep(args):
     try:
         from .sweeps import sweep, sweep_directory
         ds = sweep(scene, out=args.out, scheduler=args.scheduler, n_workers=args.workers,
-                   resume=not args.restart, centreline=args.centreline)
+                   resume=not args.restart, centreline=args.centreline, vtu=args.vtu)
     except ModuleNotFoundError as err:
         _err(f"sweeps need the optional package {err.name!r}: pip install "
              "'skfem_rod[sweep]'")
@@ -394,6 +394,9 @@ def parser():
                    help="worker processes of the local cluster (default: the CPUs)")
     w.add_argument("--centreline", action="store_true",
                    help="also keep the nodal positions of every step (larger files)")
+    w.add_argument("--vtu", action="store_true",
+                   help="also write each point's VTU series to OUT/points/KEY/ (on a "
+                        "cluster: OUT on a file system the workers share)")
     w.add_argument("--restart", action="store_true",
                    help="recompute every point (default: skip the points in OUT/points)")
     w.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")

@@ -248,14 +248,14 @@ class SweepPoint:
     key: str
 
 
-def point_key(data, centreline=False):
+def point_key(data, centreline=False, vtu=False):
     """Stable hash of a validated scene's content (what the solve sees:
     not its title, outputs or sweep), of the skfem_rod version and of
-    whether the point keeps its centreline."""
+    what the point keeps besides its figures (centreline, VTU series)."""
     from . import __version__
     content = {k: v for k, v in data.items() if k not in ("title", "output", "sweep")}
-    text = json.dumps([FORMAT, __version__, content] + ([{"centreline": True}] if centreline
-                                                         else []),
+    keep = {k: True for k, on in (("centreline", centreline), ("vtu", vtu)) if on}
+    text = json.dumps([FORMAT, __version__, content] + ([keep] if keep else []),
                       sort_keys=True, default=float)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
@@ -268,7 +268,7 @@ def _base(scene):
     return scene.data, scene.name, scene.source
 
 
-def sweep_points(scene, parameters=None, mode=None, centreline=False):
+def sweep_points(scene, parameters=None, mode=None, centreline=False, vtu=False):
     """The points of a sweep, in dataset order.
 
     Parameters
@@ -279,8 +279,9 @@ def sweep_points(scene, parameters=None, mode=None, centreline=False):
         Dotted key -> values (replaces the scene's ``[sweep]`` table).
     mode : {"grid", "zip"}, optional
         Default: the ``[sweep]`` table's, else ``"grid"``.
-    centreline : bool
-        The points keep their centreline (part of their key).
+    centreline, vtu : bool
+        The points keep their centreline, their VTU series (part of their
+        key).
 
     Returns
     -------
@@ -329,7 +330,7 @@ def sweep_points(scene, parameters=None, mode=None, centreline=False):
         for k, v in zip(keys, vals):
             d = _put(d, parse_key(k), v)
         points.append(SweepPoint(tuple(idx), dict(zip(keys, vals)), d,
-                                 point_key(_validate(d), centreline)))
+                                 point_key(_validate(d), centreline, vtu)))
     return points, spec
 
 
@@ -389,7 +390,7 @@ STEP_VARIABLES = {
 }
 
 
-def run_point(data, name="scene", values=None, on_step=None, centreline=False):
+def run_point(data, name="scene", values=None, on_step=None, centreline=False, vtu=None):
     """Load and solve one point's scene table; returns its record: the
     per-step arrays of :data:`STEP_VARIABLES` (converged steps only) and
     ``converged``, ``message``, ``n_steps``, ``wall_time``, ``cpu_time``.
@@ -399,7 +400,8 @@ def run_point(data, name="scene", values=None, on_step=None, centreline=False):
     ``on_step(values, result, k)``, if given, is called after each
     converged step ``k`` (on the worker).  With ``centreline``, the record
     also holds the nodal ``arclength`` and the ``centreline`` positions of
-    every step.
+    every step.  With ``vtu`` (a directory), the converged steps are also
+    written there as a VTU series (``point.pvd``).
     """
     from .scene import load_scene
     t0, c0 = time.perf_counter(), time.process_time()
@@ -427,6 +429,11 @@ def run_point(data, name="scene", values=None, on_step=None, centreline=False):
         for row, d in zip(rows, diss):
             row["dissipation"] = float(d)
     rec = {name_: np.array([row[name_] for row in rows]) for name_ in STEP_VARIABLES}
+    if vtu is not None and rows:
+        try:
+            result.write_series(vtu, "point")
+        except OSError as err:
+            message += f" (the VTU series could not be written: {err})"
     if centreline and rows:
         rec["arclength"] = result.nodes(0)[0]
         rec["centreline"] = np.array([result.nodes(k)[1] for k in range(len(rows))])
@@ -593,7 +600,7 @@ def open_sweep(path):
 # the sweep
 # ---------------------------------------------------------------------------
 def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers=None,
-          resume=True, progress=None, on_step=None, centreline=False):
+          resume=True, progress=None, on_step=None, centreline=False, vtu=False):
     """Solve a scene at every point of a parameter sweep on Dask.
 
     Parameters
@@ -625,6 +632,9 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
     centreline : bool
         Also keep the nodal positions of every step (``centreline``, dims
         ``step, node, xyz``, and ``arclength``); off by default (large).
+    vtu : bool
+        Also write each point's VTU series to ``out/points/<key>/point.pvd``
+        (by the workers: on a cluster, ``out`` must be a folder they share).
 
     Returns
     -------
@@ -645,7 +655,7 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
         scene = load_scene(scene)
     if n_workers is not None and not (isinstance(n_workers, int) and n_workers >= 1):
         raise ValueError(f"n_workers must be an integer >= 1, got {n_workers!r}")
-    points, spec = sweep_points(scene, parameters, mode, centreline)
+    points, spec = sweep_points(scene, parameters, mode, centreline, vtu)
     out = sweep_directory(scene, out)
     folder = os.path.join(out, POINTS_DIR)
     os.makedirs(folder, exist_ok=True)
@@ -667,7 +677,8 @@ def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers
              total - len(todo), len(todo))
     if todo:
         records.update(_run(todo, scene.name, folder, n_sup, scheduler, n_workers,
-                            progress, (on_step, centreline), total - len(todo), total))
+                            progress, (on_step, centreline, vtu), total - len(todo),
+                            total))
         records.update(_read_points([p for p in todo if p.key not in records], folder))
     meta = dict(scene=scene.name, title=scene.title, source=str(scene.source or ""),
                 scene_data=json.dumps(scene.data, default=float))
@@ -724,7 +735,10 @@ def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, options, don
         client = scheduler
     lost = {}
     try:
-        futures = {client.submit(run_point, p.data, name, p.values, *options,
+        on_step, centreline, vtu = options
+        futures = {client.submit(run_point, p.data, name, p.values, on_step, centreline,
+                                 os.path.abspath(os.path.join(folder, p.key)) if vtu
+                                 else None,
                                  key=f"skfem-rod-point-{p.key}", pure=False): p
                    for p in todo}
         for fut in as_completed(futures):

@@ -283,7 +283,7 @@ def test_point_whose_worker_dies_is_rerun(tmp_path, client):
 
     scene = load_scene(write(tmp_path, SCENE))
     ds = sweeps.sweep(scene, {"load[0].vector[2]": [-0.05, -0.1]}, out=tmp_path / "out",
-                      scheduler=client, on_step=die_once, centreline=True)
+                      scheduler=client, on_step=die_once, centreline=True, vtu=True)
     assert marker.exists()
     assert bool(ds.converged.all())
     res = single(1e7, -0.1)
@@ -296,6 +296,9 @@ def test_point_whose_worker_dies_is_rerun(tmp_path, client):
     np.testing.assert_allclose(pt.centreline.values[:n, -1], pt.tip_position.values[:n])
     np.testing.assert_allclose(pt.centreline.values[n - 1], res.nodes()[1], rtol=1e-9,
                                atol=1e-12)
+    # and the VTU series, kept on request, one file per converged step
+    series = tmp_path / "out" / "points" / str(pt.point_key.values)
+    assert (series / "point.pvd").exists() and len(list(series.glob("*.vtu"))) == n
 
 
 def test_cli_sweep_refuses_bad_input(tmp_path, capsys):
