@@ -513,7 +513,7 @@ def main(argv=None):
     ]))
     add("")
     add("### skfem_rod settings\n")
-    add(f"`Rod(geometry.straight(1), Section(EA, GA, GA, EI, EI, GJ), n)`, "
+    add(f"`Rod(geometry.straight(1), Section(EA=EA, GA1=GA, GA2=GA, EI1=EI, EI2=EI, GJ=GJ), n)`, "
         f"`clamp('start')`, `add_moment` / `add_force` at 'end', "
         f"`solve(n_steps=4)` with default options (rtol 1e-10); "
         f"n = {', '.join(map(str, sk_sizes))}; median of {2 * sk_repeats} (two passes).\n")

@@ -19,7 +19,7 @@ def arch(n_elements=16):
     shape = geometry.arc(RADIUS, 2 * a, tangent=(np.cos(a), np.sin(a), 0),
                          toward=(np.sin(a), -np.cos(a), 0))
     # in-plane bending is about d2 (the arc's binormal): EI2 = EI; stiff out of plane
-    rod = Rod(shape, Section(EA, GA, GA, 10 * EI, EI, 10 * EI), n_elements)
+    rod = Rod(shape, Section(EA=EA, GA1=GA, GA2=GA, EI1=10 * EI, EI2=EI, GJ=10 * EI), n_elements)
     rod.pin("start").pin("end").fix_rotation("start", (0,))
     rod.add_force(rod.length / 2, [0.0, -LOAD, 0.0])
     return rod
@@ -100,7 +100,7 @@ def test_twist_buckling_under_tension_detected_without_imperfection():
     2 sqrt(BT) * 1.00198 for L = 50 sqrt(B/T))."""
     B = T = 1.0
     GJ, L, turn = 10.0, 50.0, 12.0
-    rod = Rod(geometry.straight(L), Section(1e4, 1e4, 1e4, B, B, GJ), 64)
+    rod = Rod(geometry.straight(L), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=B, EI2=B, GJ=GJ), 64)
     rod.clamp("start").pin("end", (1, 2)).add_force("end", [T, 0, 0], constant=True)
     rod.prescribe_rotation("end", [turn, 0, 0])
     res = follow(rod, lam_stop=1.0, stability=True, n_eigen=2, locate_tol=1e-4)
@@ -122,7 +122,7 @@ def test_twist_buckling_under_tension_detected_without_imperfection():
 
 
 def test_rod_solve_arclength_switch_and_bad_input():
-    rod = Rod(geometry.straight(1.0), Section(1e4, 1e4, 1e4, 1.0, 1.0, 1.0), 4)
+    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=1.0), 4)
     rod.clamp("start").add_moment("end", [0, 0, np.pi])
     res = rod.solve(4, method="arclength")
     assert isinstance(res, PathResult) and res.converged

@@ -135,7 +135,7 @@ def test_pyvista_and_meshio_not_imported_by_import_or_solve():
         from skfem_rod import Rod, Section, geometry
         heavy = ("pyvista", "meshio", "vtk", "matplotlib")
         print("import:", [m for m in heavy if m in sys.modules])
-        rod = Rod(geometry.straight(1.0), Section(1e4, 1e4, 1e4, 1.0, 1.0, 1.0), 4)
+        rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=1.0), 4)
         rod.clamp("start").add_moment("end", [0.0, 0.0, 3.0])
         assert rod.solve(n_steps=2).converged
         print("solve:", [m for m in heavy if m in sys.modules])
@@ -219,7 +219,7 @@ def test_broad_phase_returns_only_pairs_within_reach(seed):
     rng = np.random.default_rng(seed)
     eps = 0.01
     rod = Rod(geometry.helix(radius=0.1, pitch=2.5 * eps, turns=3),
-              Section(1, 1, 1, 1, 1, 1, radius=eps), 60)
+              Section(EA=1, GA1=1, GA2=1, EI1=1, EI2=1, GJ=1, radius=eps), 60)
     # a smooth random perturbation (random phases and directions) of the coil
     s = rod.mesh.s_nodes[:, None]
     k = 2 * np.pi * rng.uniform(2.0, 5.0, 3) / rod.length
