@@ -9,9 +9,9 @@ ply angle 0.05 rad, 15 turns, end loop of half-width 100 eps, tails of
 200 eps; rod length 5575 eps.  Second table: the dense coil of the first
 benchmark (helix of 10 turns, coil radius 0.1, pitch 1.9 eps: every slave
 in contact with the neighbouring turns).  Timings are medians over repeats
-of one full system evaluation (residual + tangent, `_System.evaluate`) and
+of one full system evaluation (residual + tangent, `Problem.evaluate`) and
 one factorization + solve, read from the solver's phase timers
-(`_System.timers`).  "contact asm" is the warm figure (the CSC pattern of
+(`Problem.timers`).  "contact asm" is the warm figure (the CSC pattern of
 the contact stiffness cached from the previous evaluation, as in Newton
 iterations whose contact element pairs do not change); "cold" clears that
 cache before every evaluation.
@@ -30,7 +30,7 @@ import numpy as np
 
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import assembly as contact_assembly
-from skfem_rod.solver import _System
+from skfem_rod.problem import Problem
 
 HERE = Path(__file__).resolve().parent
 EPS = 1e-3
@@ -51,14 +51,15 @@ def measure(scene, n, repeats):
     """Medians (s): internal, search, contact asm (warm), contact asm
     (cold), factor + solve; and pairs, active pairs, candidates, dofs."""
     rod = scene(n)
-    system = _System(rod)
+    system = Problem(rod)
     rows = []
     for cold in (False, True):
         for _ in range(repeats):
             if cold:
                 contact_assembly._PATTERN_CACHE.clear()
             system.timers.clear()
-            res, K, _, iw = system.evaluate(rod.r0, rod.R0, 1.0)
+            ev = system.evaluate(rod.r0, rod.R0, 1.0)
+            res, K = ev.residual, ev.tangent
             tm = dict(system.timers)
             if not cold:
                 t1 = time.perf_counter()
@@ -69,7 +70,7 @@ def measure(scene, n, repeats):
             else:
                 rows.append([tm["internal_assembly"], tm["contact_search"], np.nan,
                              tm["contact_assembly"], np.nan])
-    pairs, fN, _ = iw.contact
+    pairs, fN = ev.contact.pairs, ev.contact.fN
     med = np.nanmedian(np.array(rows), axis=0)
     return med, pairs.size, int((fN > 0).sum()), pairs.n_candidates, rod.mesh.n_dofs
 

@@ -38,7 +38,7 @@ import numpy as np
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import friction_assembly
 from skfem_rod.rotations import expm
-from skfem_rod.solver import _System
+from skfem_rod.problem import Problem
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -64,15 +64,16 @@ def systems(rod):
     out = {}
     for name, options in CASES.items():
         rod.enable_contact(**options)
-        out[name] = _System(rod)
-        out[name].multipliers[:] = 0.5 * EPS / rod.contact.penalty * 0.1
+        out[name] = Problem(rod)
+        out[name].multipliers.normal[:] = 0.5 * EPS / rod.contact.penalty * 0.1
     return out
 
 
 def iteration(system, r, R):
     system.timers.clear()
     t0 = time.perf_counter()
-    res, K, _, iw = system.evaluate(r, R, 1.0)
+    ev = system.evaluate(r, R, 1.0)
+    res, K = ev.residual, ev.tangent
     t1 = time.perf_counter()
     solve = system.factor(K)
     solve(-res)
@@ -80,7 +81,7 @@ def iteration(system, r, R):
     tm = system.timers
     row = [tm["internal_assembly"], tm["contact_search"], tm["contact_assembly"],
            tm["friction_assembly"], t2 - t1, t2 - t0]
-    return row, iw
+    return row, ev
 
 
 def measure(n, repeats):
@@ -91,7 +92,7 @@ def measure(n, repeats):
     r = rod.r0 + 1e-3 * EPS * rng.normal(size=rod.r0.shape)
     R = expm(1e-3 * rng.normal(size=rod.r0.shape)) @ rod.R0
     for s in sy.values():                         # warm-up
-        _, iw = iteration(s, r, R)
+        _, ev = iteration(s, r, R)
     cold = {name: [] for name in sy if name != "off"}     # friction pattern rebuilt
     for _ in range(3):
         for name in cold:
@@ -103,7 +104,7 @@ def measure(n, repeats):
     for k in range(repeats):                      # in turn, the first case rotating
         for name in names[k % 3:] + names[:k % 3]:
             rows[name].append(iteration(sy[name], r, R)[0])
-    _, fN, _ = iw.contact
+    fN = ev.contact.fN
     return ({k: np.median(np.array(v), axis=0) for k, v in rows.items()},
             int((fN > 0).sum()), cold)
 

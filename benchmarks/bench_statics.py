@@ -48,7 +48,7 @@ import scipy.sparse.linalg as spla
 from skfem_rod import Rod, Section, geometry, analytic
 from skfem_rod.assembly import internal_work, shape_operator
 from skfem_rod.rotations import expm
-from skfem_rod.solver import _System
+from skfem_rod.problem import Problem
 
 HERE = Path(__file__).resolve().parent
 
@@ -349,21 +349,22 @@ def iteration_cost(rep, sizes, repeats_for):
             "largest meshes stay cheap to set up). "
             "(a) `internal_work(..., tangent=True)`: residual + tangent (CSC); "
             "(b) `internal_work(..., tangent=False)`: residual only; "
-            "(c) `_System.factor(K)` (constraints, `scipy.sparse.linalg.splu`, "
+            "(c) `Problem.factor(K)` (constraints, `scipy.sparse.linalg.splu`, "
             "COLAMD) + one solve. (a), (b), (c) are timed interleaved, "
             "medians of the repeats [minimum in brackets]; the shape operator Z is precomputed (and "
-            "cached on the mesh) as in the solver. `setup` = `Rod(...)` + `_System(rod)` once (not per "
+            "cached on the mesh) as in the solver. `setup` = `Rod(...)` + `Problem(rod)` once (not per "
             "iteration).\n")
     rows, data, data_min = [], {}, {}
     for n in sizes:
         reps = repeats_for(n)
         t0 = time.perf_counter()
         rod = make_rod("rollup", n)
-        sysm = _System(rod)
+        sysm = Problem(rod)
         t_setup = time.perf_counter() - t0
         r, R = rollup_state(rod)
         mesh, Z = rod.mesh, sysm.Z
-        res_vec, K, _, _ = sysm.evaluate(r, R, 1.0)
+        ev = sysm.evaluate(r, R, 1.0)
+        res_vec, K = ev.residual, ev.tangent
         rhs = -res_vec
 
         def asm_full():
@@ -397,7 +398,7 @@ def iteration_cost(rep, sizes, repeats_for):
         gc.collect()
         tracemalloc.start()
         out = sysm.evaluate(r, R, 1.0)
-        sysm.factor(out[1])(-out[0])
+        sysm.factor(out.tangent)(-out.residual)
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
         del out
@@ -416,8 +417,8 @@ def iteration_cost(rep, sizes, repeats_for):
                    "(c) us/element", "peak memory / iteration", "per element",
                    "setup"], rows))
     rep.add("\n`peak memory / iteration` = `tracemalloc` peak of one "
-            "`_System.evaluate` (residual + tangent + loads) followed by "
-            "`_System.factor` and one solve (all NumPy/SciPy arrays), plus the "
+            "`Problem.evaluate` (residual + tangent + loads) followed by "
+            "`Problem.factor` and one solve (all NumPy/SciPy arrays), plus the "
             "SuperLU factor storage, which tracemalloc does not see, counted as "
             "12 bytes per nonzero of L + U. Inputs (state, cached shape operator) "
             "are not included.\n")

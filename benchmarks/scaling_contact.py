@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_contact import plectoneme_scene                      # noqa: E402
 
-from skfem_rod.solver import _System                            # noqa: E402
+from skfem_rod.problem import Problem                            # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -31,13 +31,14 @@ HERE = Path(__file__).resolve().parent
 def iteration(system, rod):
     system.timers.clear()
     t0 = time.perf_counter()
-    res, K, _, iw = system.evaluate(rod.r0, rod.R0, 1.0)
+    ev = system.evaluate(rod.r0, rod.R0, 1.0)
+    res, K = ev.residual, ev.tangent
     t1 = time.perf_counter()
     system.factor(K)(-res)
     t2 = time.perf_counter()
     tm = system.timers
     return [tm["internal_assembly"], tm["contact_search"], tm["contact_assembly"],
-            t2 - t1, t2 - t0], int((iw.contact[1] > 0).sum())
+            t2 - t1, t2 - t0], int((ev.contact.fN > 0).sum())
 
 
 def main(argv=None):
@@ -51,7 +52,7 @@ def main(argv=None):
     data = []
     for n in sizes:
         rod = plectoneme_scene(n)
-        system = _System(rod)
+        system = Problem(rod)
         iteration(system, rod)                      # warm-up (caches, imports)
         rows = []
         for _ in range(3):

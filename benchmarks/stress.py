@@ -46,7 +46,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from skfem_rod import Rod, Section, analytic, geometry
-from skfem_rod import solver as solver_mod
+from skfem_rod import problem as problem_mod
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -220,22 +220,25 @@ def hairpin_friction(gamma_T, n_elements=40):
 # ---------------------------------------------------------------------------
 class TangentProbe:
     """Records the last tangent the solver factorizes (and its fixed dofs)
-    by wrapping ``_System.factor`` for the duration of a ``with`` block."""
+    by wrapping ``Problem.factor`` for the duration of a ``with`` block
+    (the factorizations of the full tangent, not those of a position
+    correction)."""
 
     def __enter__(self):
         self.K, self.fixed, self.count = None, None, 0
-        self._orig = solver_mod._System.factor
+        self._orig = problem_mod.Problem.factor
         probe = self
 
-        def factor(system, K):
-            probe.K, probe.fixed = K, system.fixed
-            probe.count += 1
-            return probe._orig(system, K)
-        solver_mod._System.factor = factor
+        def factor(problem, K, fixed=None):
+            if fixed is None:
+                probe.K, probe.fixed = K, problem.fixed
+                probe.count += 1
+            return probe._orig(problem, K, fixed)
+        problem_mod.Problem.factor = factor
         return self
 
     def __exit__(self, *exc):
-        solver_mod._System.factor = self._orig
+        problem_mod.Problem.factor = self._orig
         return False
 
 

@@ -43,13 +43,17 @@ loads (dead forces; see :mod:`skfem_rod.stability`), and not with contact
 ``stability=True`` with contact raises.
 """
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
+from .augmented import augmented_lagrangian
 from .kinematics import ElementRotationError
-from .loads import point_loads
+from .newton import Border, Report, newton
+from .options import make_options
+from .problem import Problem
 from .results import Result
-from .solver import _System, _prescribed_increment, make_options, newton
+from .stability import modes
 from .validation import positive
 
 
@@ -134,31 +138,23 @@ class PathResult(Result):
 
 
 # ----------------------------------------------------------------------------
-class _Follower:
-    """Bordered Newton corrector and the path state of :func:`follow`."""
+class Follower:
+    """Pseudo-arclength corrector and path state of :func:`follow` on a
+    :class:`~skfem_rod.problem.Problem`: the bordered Newton
+    (:func:`skfem_rod.newton.newton` with a :class:`~skfem_rod.newton.Border`)
+    inside the augmented-Lagrangian loop, as every other loop."""
 
     def __init__(self, rod, opts, load_scale):
         self.rod = rod
         self.opts = opts
-        self.system = _System(rod)
-        self.fixed = self.system.fixed
-        self.free = self.system.free
+        self.problem = Problem(rod)
         # prescribed motion per unit load factor, on the constrained dofs only
-        self.pfix = _prescribed_increment(rod, 1.0)          # in the supports' bases
-        self.pfix[self.free] = 0.0
+        self.pfix = self.problem.prescribed(1.0)
+        self.pfix[self.problem.free] = 0.0
         d = np.ones((rod.mesh.n_nodes, 6))
         d[:, :3] = 1.0 / rod.length
         self.D2 = (d ** 2).ravel()                # weights of the scaled inner product
         self.psi2 = None if load_scale is None else float(load_scale) ** 2
-
-    # -- helpers ---------------------------------------------------------
-    def q(self, R):
-        """``d f_ext / d lam`` at rotations ``R`` (point loads affine in lam)."""
-        mesh, rod = self.rod.mesh, self.rod
-        f1 = point_loads(mesh, rod.point_loads, R, rod.R0, 1.0)[0]
-        f0 = point_loads(mesh, rod.point_loads, R, rod.R0, 0.0)[0]
-        q = self.system.f_dist + f1 - f0
-        return q if self.system.T is None else self.system.T.T @ q
 
     def dot(self, u, v, ul, vl):
         return float(np.dot(self.D2 * u, v) + self.psi2 * ul * vl)
@@ -166,10 +162,11 @@ class _Follower:
     def tangent(self, r, R, lam, K=None, orient=None):
         """Unit tangent ``(t_y, t_lam)`` at a converged point, oriented so
         that ``<t, orient> > 0`` (default: increasing load factor)."""
+        p = self.problem
         if K is None:
-            _, K, _, _ = self.system.evaluate(r, R, lam)
-        solve = self.system.factor(K)
-        v = solve(self.q(R) - K @ self.pfix) + self.pfix       # dy / dlam
+            K = p.evaluate(r, R, lam).tangent
+        solve = p.factor(K)
+        v = solve(p.load_rate(R) - K @ self.pfix) + self.pfix       # dy / dlam
         if self.psi2 is None:
             nv = float(np.sqrt(np.dot(self.D2 * v, v)))
             self.psi2 = nv ** 2 if nv > 0 else 1.0
@@ -179,116 +176,93 @@ class _Follower:
             ty, tl = -ty, -tl
         return ty, tl
 
-    # -- corrector -------------------------------------------------------
     def correct(self, r, R, lam, w, wl, target, pred_y, pred_l):
         """Newton on ``G(y, lam) = 0`` and ``<w, Dy> + wl Dlam = target``
-        (``w`` already weighted), from the base point ``(r, R, lam)`` moved
-        by the predictor ``(pred_y, pred_l)``.  Returns ``(ok, r, R, lam,
-        info)``."""
-        opts, system = self.opts, self.system
-        free, fixed = self.free, self.fixed
-        length = self.rod.length
-        Dy, Dl = pred_y.copy(), float(pred_l)
-        history = []
+        (``w`` already weighted) from the base point ``(r, R, lam)`` moved
+        by the predictor ``(pred_y, pred_l)``.  Returns ``(r, R, lam,
+        report)``."""
+        p = self.problem
         try:
-            r, R = system.update(r, R, pred_y, 1.0)
-            lam = lam + pred_l
-            res, K, f_ext, iw = system.evaluate(r, R, lam)
+            r1, R1 = p.update(r, R, pred_y, 1.0)
         except ElementRotationError as err:
-            return False, r, R, lam, dict(reason=str(err), iterations=0, history=history)
-        last = np.inf
-        for it in range(opts.max_iterations + 1):
-            rn = float(np.linalg.norm(res[free]))
-            history.append(rn)
-            if not np.isfinite(rn):
-                return False, r, R, lam, dict(reason="non-finite residual", iterations=it,
-                                              history=history)
-            scale = max(np.linalg.norm(f_ext), np.linalg.norm(res[fixed]), 1e-300)
-            cres = abs(float(np.dot(w, Dy) + wl * Dl - target))
-            if (rn <= opts.rtol * scale or last <= opts.increment_tol) and \
-                    cres <= 1e-8 * max(abs(target), 1e-300):
-                return True, r, R, lam, dict(res=res, K=K, iw=iw, f_ext=f_ext, iterations=it,
-                                             history=history, reason="")
-            if it == opts.max_iterations:
-                break
-            try:
-                solve = system.factor(K)
-            except RuntimeError as err:
-                return False, r, R, lam, dict(reason=f"singular tangent ({err})",
-                                              iterations=it, history=history)
-            xg = solve(-res)
-            xq = solve(self.q(R) - K @ self.pfix) + self.pfix
-            den = float(np.dot(w, xq) + wl)
-            if not np.isfinite(den) or den == 0.0:
-                return False, r, R, lam, dict(reason="singular bordered system",
-                                              iterations=it, history=history)
-            dl = (target - np.dot(w, Dy) - wl * Dl - np.dot(w, xg)) / den
-            dy = xg + dl * xq
-            if not np.all(np.isfinite(dy)):
-                return False, r, R, lam, dict(reason="non-finite update", iterations=it,
-                                              history=history)
-            alpha = 1.0
-            if opts.line_search:
-                spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
-                alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
-            try:
-                r_t, R_t = system.update(r, R, dy, alpha)
-                out = system.evaluate(r_t, R_t, lam + alpha * dl)
-            except ElementRotationError as err:
-                return False, r, R, lam, dict(reason=str(err), iterations=it + 1,
-                                              history=history)
-            r, R, lam = r_t, R_t, lam + alpha * dl
-            res, K, f_ext, iw = out
-            Dy += alpha * dy
-            Dl += alpha * dl
-            upd = (alpha * dy).reshape(-1, 6)
-            last = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max()))
-        return False, r, R, lam, dict(reason=f"no convergence in {opts.max_iterations} "
-                                             f"iterations (residual {history[-1]:.3e})",
-                                      iterations=opts.max_iterations, history=history)
+            return r, R, lam, Report(False, reason=str(err))
+        border = Border(w=w, wl=wl, target=target, Dy=pred_y.copy(), Dl=float(pred_l),
+                        p=self.pfix)
+        return newton(p, r1, R1, lam + pred_l, self.opts, border=border)
 
     def step(self, r, R, lam, w, wl, target, pred_y, pred_l):
-        """:meth:`correct`, wrapped in Uzawa updates when contact is on."""
-        c = self.system.contact
-        if c is None:
-            return self.correct(r, R, lam, w, wl, target, pred_y, pred_l)
-        from .contact.law import gap, uzawa_update
-        saved = self.system.multipliers.copy()
-        r0, R0, lam0 = r, R, lam
-        total, uzawa = 0, 0
-        while True:
-            ok, r1, R1, lam1, info = self.correct(r0, R0, lam0, w, wl, target, pred_y, pred_l)
-            total += info["iterations"]
-            if not ok:
-                self.system.multipliers = saved
-                return ok, r1, R1, lam1, info
-            pairs, fN, _ = info["iw"].contact
-            d = gap(pairs.distance, c.radius)
-            pen = float(d.max(initial=0.0))
-            if pen <= c.tolerance * c.radius or uzawa == c.max_uzawa:
-                info.update(uzawa=uzawa, newton_total=total, penetration=pen,
-                            uzawa_converged=pen <= c.tolerance * c.radius)
-                return True, r1, R1, lam1, info
-            new = np.zeros_like(self.system.multipliers)
-            new[pairs.slave] = uzawa_update(d, self.system.multipliers[pairs.slave], c.penalty)
-            self.system.multipliers = new
-            uzawa += 1
-            # re-solve from the base with the converged increment as predictor
-            pred_y = _increment(r0, R0, r1, R1)
-            if self.system.T is not None:              # to the supports' bases
-                pred_y = self.system.T.T @ pred_y
-            pred_l = lam1 - lam0
+        """:meth:`correct` inside the augmented-Lagrangian loop (contact on):
+        every pass re-solves from the base point with the last converged
+        increment as its predictor.  A converged step is committed (the
+        friction slips of the next step are measured from it)."""
+        p = self.problem
+
+        def solve_pass(previous):
+            if previous is None:
+                return self.correct(r, R, lam, w, wl, target, pred_y, pred_l)
+            r1, R1, lam1 = previous
+            return self.correct(r, R, lam, w, wl, target, p.increment(r1, R1, r, R),
+                                lam1 - lam)
+
+        return augmented_lagrangian(p, solve_pass)
 
     def modes(self, r, R, lam, k):
-        from .stability import _modes
-        return _modes(self.system, r, R, lam, k, None)
+        return modes(self.problem, r, R, lam, k)
+
+    def corrector(self, p, h):
+        """:meth:`step` along the tangent of the point ``p`` by arclength ``h``."""
+        return self.step(p.r, p.R, p.lam, self.D2 * p.ty, self.psi2 * p.tl, h, h * p.ty,
+                         h * p.tl)
+
+    def advance(self, p, ds, lam_stop):
+        """One continuation step from the point ``p``: tangent predictor
+        (spins bounded by ``max_rotation_step``), corrector, and, when the
+        step crosses ``lam_stop``, a corrector placed on it (``Dlam``
+        fixed).  Returns ``(h, new point or None, report, landed)``."""
+        spin = np.abs((ds * p.ty).reshape(-1, 6)[:, 3:]).max()
+        max_spin = self.opts.max_rotation_step
+        h = min(ds, ds * max_spin / spin) if spin > 0 else ds
+        r1, R1, lam1, info = self.corrector(p, h)
+        land = False
+        if info.converged and lam_stop is not None and \
+                (p.lam - lam_stop) * (lam1 - lam_stop) < 0:
+            frac = (lam_stop - p.lam) / (lam1 - p.lam)
+            r1, R1, lam1, info = self.step(p.r, p.R, p.lam, np.zeros_like(p.ty), 1.0,
+                                           lam_stop - p.lam, frac * h * p.ty, frac * h * p.tl)
+            land = info.converged
+            h = frac * h
+        if not info.converged:
+            return h, None, info, False
+        ty1, tl1 = self.tangent(r1, R1, lam1, K=info.evaluation.tangent, orient=(p.ty, p.tl))
+        return h, Point(r1, R1, lam1, ty1, tl1), info, land
+
+    def record(self, result, p, info, s):
+        """Append the converged point ``p`` at path arclength ``s`` (with its
+        eigenvalues when ``stability``) and commit it."""
+        self.problem.commit(p.r, p.R, info.evaluation)
+        result.append(p.lam, p.r, p.R, info, time=s)
+        result._s.append(s)
+        result._tlam.append(p.tl)
+        result.tangents.append((p.ty, p.tl))
+        if self.stability:
+            m = self.modes(p.r, p.R, p.lam, self.n_eigen)
+            result._eig.append(m.values)
+            result._index.append(m.negative)
+            result._modes_last = m
+        else:
+            result._eig.append(None)
+            result._index.append(-1)
+        if self.callback is not None:
+            self.callback(result, len(result.steps) - 1)
 
 
-def _increment(r0, R0, r1, R1):
-    """Increment ``dy`` with ``r1 = r0 + dr``, ``R1 = exp(dw) R0``."""
-    from .rotations import logm
-    dw = logm(R1 @ np.swapaxes(R0, 1, 2))
-    return np.concatenate([r1 - r0, dw], axis=1).ravel()
+class Point(NamedTuple):
+    """A converged point of the path with its unit tangent."""
+    r: np.ndarray
+    R: np.ndarray
+    lam: float
+    ty: np.ndarray
+    tl: float
 
 
 def _check(name, value, lo=None, integer=False):
@@ -356,33 +330,15 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
     locate_tol = positive("locate_tol", locate_tol)
     opts = make_options(options)
     rod.check_constraints()
-    F = _Follower(rod, opts, load_scale)
     if load_scale is not None:
         positive("load_scale", load_scale)
+    F = Follower(rod, opts, load_scale)
     result = PathResult(rod)
-
-    if start is None:
-        ok, r, R, info = newton(F.system, rod.r0.copy(), rod.R0.copy(), 0.0,
-                                np.zeros(rod.mesh.n_dofs), opts)
-        if not ok:
-            result.finish(False, f"the unloaded reference is not in equilibrium: "
-                                 f"{info['reason']}")
-            return result
-        lam = 0.0
-        ty, tl = F.tangent(r, R, lam)
-        if lam_stop is not None and lam_stop < 0:
-            ty, tl = -ty, -tl
-    else:
-        r, R, lam, ty, tl = start
-        r, R, lam = np.asarray(r, float).copy(), np.asarray(R, float).copy(), float(lam)
-        ty, tl = np.asarray(ty, float), float(tl)
-        if F.psi2 is None:
-            F.tangent(r, R, lam)             # sets psi from the local load tangent
-        nrm = np.sqrt(F.dot(ty, ty, tl, tl))
-        ty, tl = ty / nrm, tl / nrm
-        info = dict(iterations=0, history=[])
-        res, K, f_ext, iw = F.system.evaluate(r, R, lam)
-        info.update(res=res, iw=iw)
+    first = _first_point(F, start, lam_stop)
+    if isinstance(first, str):
+        result.finish(False, first)
+        return result
+    r, R, lam, ty, tl, info = first
     result.load_scale = float(np.sqrt(F.psi2))
     if ds is None:            # a load increment of load_step along the initial tangent
         load_step = positive("load_step", load_step)
@@ -391,58 +347,31 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
     ds_max = 20.0 * ds if ds_max is None else positive("ds_max", ds_max)
     ds_min = 1e-6 * ds if ds_min is None else positive("ds_min", ds_min)
 
-    def record(r, R, lam, info, s, ty, tl):
-        result.append(lam, r, R, info, time=s)
-        result._s.append(s)
-        result._tlam.append(tl)
-        result.tangents.append((ty, tl))
-        if stability:
-            m = F.modes(r, R, lam, n_eigen)
-            result._eig.append(m.values)
-            result._index.append(m.negative)
-            result._modes_last = m
-        else:
-            result._eig.append(None)
-            result._index.append(-1)
-        if callback is not None:
-            callback(result, len(result.steps) - 1)
-
+    F.stability, F.n_eigen, F.callback = stability, n_eigen, callback
+    point = Point(r, R, lam, ty, tl)
     s_path = 0.0
-    record(r, R, lam, info, s_path, ty, tl)
-    max_spin = opts.max_rotation_step
+    F.record(result, point, info, s_path)
     k = 0
     while k < max_steps:
-        # predictor: tangent, spins bounded by max_rotation_step
-        spin = np.abs((ds * ty).reshape(-1, 6)[:, 3:]).max()
-        h = min(ds, ds * max_spin / spin) if spin > 0 else ds
-        land = False
-        ok, r1, R1, lam1, info = F.step(r, R, lam, F.D2 * ty, F.psi2 * tl, h, h * ty, h * tl)
-        if ok and lam_stop is not None and (lam - lam_stop) * (lam1 - lam_stop) < 0:
-            # crossed lam_stop: place the point on it (corrector with Dlam fixed)
-            frac = (lam_stop - lam) / (lam1 - lam)
-            ok, r1, R1, lam1, info = F.step(r, R, lam, np.zeros_like(ty), 1.0, lam_stop - lam,
-                                            frac * h * ty, frac * h * tl)
-            land = ok
-            h = frac * h
-        if not ok:
+        h, new, info, land = F.advance(point, ds, lam_stop)
+        if not info.converged:
             ds = 0.5 * h
-            result.log.append(f"step from lam={lam:.6g} (ds={h:.3g}) failed: {info['reason']}; "
-                              "halving ds")
+            result.log.append(f"step from lam={point.lam:.6g} (ds={h:.3g}) failed: "
+                              f"{info.reason}; halving ds")
             if ds < ds_min:
-                result.finish(False, f"stopped at load factor {lam:.6g}: step failed "
-                                     f"({info['reason']}) and ds fell below ds_min={ds_min:g}")
+                result.finish(False, f"stopped at load factor {point.lam:.6g}: step failed "
+                                     f"({info.reason}) and ds fell below ds_min={ds_min:g}")
                 return result
             continue
-        ty1, tl1 = F.tangent(r1, R1, lam1, K=info["K"], orient=(ty, tl))
         s_path += h
         k += 1
-        record(r1, R1, lam1, info, s_path, ty1, tl1)
+        F.record(result, new, info, s_path)
         if stability and locate and result._index[-1] != result._index[-2]:
-            cp = _locate(F, result, r, R, lam, ty, tl, h, locate_tol, n_eigen)
+            cp = _locate(F, result, point, h, locate_tol)
             if cp is not None:
                 result.critical.append(cp)
-        r, R, lam, ty, tl = r1, R1, lam1, ty1, tl1
-        its = max(info["iterations"], 1)
+        point = new
+        its = max(info.iterations, 1)
         ds = float(np.clip(h * np.clip(np.sqrt(target_iterations / its), 0.5, 2.0),
                            ds_min, ds_max))
         if land:
@@ -451,17 +380,44 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
             return result
         if stop is not None and stop(result):
             result.finish(True, f"stopped by the stop condition after {k} steps at load "
-                                f"factor {lam:.6g}")
+                                f"factor {point.lam:.6g}")
             return result
-    result.finish(lam_stop is None, f"{max_steps} steps done at load factor {lam:.6g} "
+    result.finish(lam_stop is None, f"{max_steps} steps done at load factor {point.lam:.6g} "
                                     f"(arclength {s_path:.4g})")
     return result
 
 
-def _locate(F, result, r, R, lam, ty, tl, h, tol, n_eigen):
+def _first_point(F, start, lam_stop):
+    """The path's first point and tangent: the reference at load factor 0
+    (an equilibrium check, contact solved in full) with the tangent toward
+    ``lam_stop``, or ``start = (r, R, lam, t_y, t_lam)``.  Returns ``(r, R,
+    lam, t_y, t_lam, report)`` or the message of a failure."""
+    p, rod = F.problem, F.rod
+    if start is None:
+        zero = np.zeros(rod.mesh.n_dofs)
+        r, R, _, rep = augmented_lagrangian(
+            p, lambda prev: newton(p, *(prev[:2] if prev else (rod.r0.copy(), rod.R0.copy())),
+                                   0.0, F.opts, prescribed=zero))
+        if not rep.converged:
+            return f"the unloaded reference is not in equilibrium: {rep.reason}"
+        ty, tl = F.tangent(r, R, 0.0)
+        if lam_stop is not None and lam_stop < 0:
+            ty, tl = -ty, -tl
+        return r, R, 0.0, ty, tl, rep
+    r, R, lam, ty, tl = start
+    r, R, lam = np.asarray(r, float).copy(), np.asarray(R, float).copy(), float(lam)
+    ty, tl = np.asarray(ty, float), float(tl)
+    if F.psi2 is None:
+        F.tangent(r, R, lam)             # sets psi from the local load tangent
+    nrm = np.sqrt(F.dot(ty, ty, tl, tl))
+    return r, R, lam, ty / nrm, tl / nrm, Report(True, evaluation=p.evaluate(r, R, lam))
+
+
+def _locate(F, result, p, h, tol):
     """Bisection in arclength for the change of the Morse index between the
-    last two points of ``result``; regula falsi on the crossing eigenvalue
-    for the final estimate."""
+    last two points of ``result`` (``p`` the earlier one, ``h`` the step);
+    regula falsi on the crossing eigenvalue for the final estimate."""
+    n_eigen = F.n_eigen
     ia, ib = result._index[-2], result._index[-1]
     j = min(ia, ib)                   # the eigenvalue that crosses zero
     if j >= n_eigen:
@@ -471,13 +427,12 @@ def _locate(F, result, r, R, lam, ty, tl, h, tol, n_eigen):
         fa, fb = result._eig[-2][j], result._eig[-1][j]
     fa0 = fa
     lo, hi = 0.0, h
-    state_lo = (r, R, lam)
+    state_lo = (p.r, p.R, p.lam)
     n_eval = 0
     while hi - lo > tol * max(h, 1e-300) and n_eval < 60:
         mid = 0.5 * (lo + hi)
-        ok, r1, R1, lam1, info = F.step(r, R, lam, F.D2 * ty, F.psi2 * tl, mid, mid * ty,
-                                        mid * tl)
-        if not ok:
+        r1, R1, lam1, info = F.corrector(p, mid)
+        if not info.converged:
             break
         m = F.modes(r1, R1, lam1, n_eigen)
         n_eval += 1
@@ -492,12 +447,10 @@ def _locate(F, result, r, R, lam, ty, tl, h, tol, n_eigen):
             fb = m.values[j] if j is not None else 0.0
     # regula falsi inside the bracket for the crossing arclength
     s_c = lo + (hi - lo) * fa / (fa - fb) if fa * fb < 0 else 0.5 * (lo + hi)
-    ok, rc, Rc, lamc, info = F.step(r, R, lam, F.D2 * ty, F.psi2 * tl, s_c, s_c * ty,
-                                    s_c * tl)
-    if not ok:
+    rc, Rc, lamc, info = F.corrector(p, s_c)
+    if not info.converged:
         rc, Rc, lamc = state_lo
-    from .stability import _modes
-    m = _modes(F.system, rc, Rc, lamc, 1, 0.0)        # the eigenpair nearest zero
+    m = modes(F.problem, rc, Rc, lamc, 1, 0.0)        # the eigenpair nearest zero
     jj = 0
     tl_prev, tl_next = result._tlam[-2], result._tlam[-1]
     kind = "limit" if tl_prev * tl_next < 0 else "bifurcation"
@@ -506,7 +459,7 @@ def _locate(F, result, r, R, lam, ty, tl, h, tol, n_eigen):
                          mode_positions=m.positions[jj], mode_spins=m.spins[jj],
                          eigenvalue=float(m.values[jj]),
                          bracket=(float(result._s[-2] + lo), float(result._s[-2] + hi)),
-                         tangent=np.concatenate([ty, [tl]]),
+                         tangent=np.concatenate([p.ty, [p.tl]]),
                          load_scale=float(np.sqrt(F.psi2)))
 
 

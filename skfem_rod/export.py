@@ -63,7 +63,7 @@ def _as_real_array(name, value):
     return a
 
 
-def _validate_points_frames(points, frames, *, prefix=""):
+def validate_points_frames(points, frames, *, prefix=""):
     points = _as_real_array(prefix + "points", points).astype(np.float64)
     if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < 2:
         raise ValueError(
@@ -179,7 +179,7 @@ def _file_mode():
 
 
 @contextlib.contextmanager
-def _atomic_path(path):
+def atomic_path(path):
     """Yield a temporary path next to ``path``; on success move it onto ``path``.
 
     On any exception the temporary file is deleted and ``path`` is untouched.
@@ -242,7 +242,7 @@ def _write_vtu_validated(path, points, frames, point_data, field_data):
     data = {name: np.ascontiguousarray(frames[:, :, i]) for i, name in enumerate(_FRAME_NAMES)}
     data.update(point_data)
     mesh = meshio.Mesh(points, [("line", cells)], point_data=data)
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
         if field_data:
             _add_field_data(tmp, field_data)
@@ -280,7 +280,7 @@ def write_vtu(path, points, frames, point_data=None, field_data=None):
         is written in that case.
     """
     path = check_path("path", path)
-    points, frames = _validate_points_frames(points, frames)
+    points, frames = validate_points_frames(points, frames)
     point_data = _validate_point_data(point_data, points.shape[0])
     field_data = _validate_field_data(field_data)
     return _write_vtu_validated(path, points, frames, point_data, field_data)
@@ -312,7 +312,7 @@ def _write_xdmf(path, steps):
     n = ref.shape[0]
     cells = np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64)
     try:
-        with _atomic_path(path) as tmp:
+        with atomic_path(path) as tmp:
             # The writer's __exit__ writes the XML to ``tmp``; with
             # data_format="XML" every array is inline, no h5py involved.
             with TimeSeriesWriter(tmp, data_format="XML") as writer:
@@ -450,7 +450,7 @@ def write_series(directory, basename, steps, *, xdmf=True):
                 f"{prev_time!r}; times must be strictly increasing"
             )
         prev_time = time
-        points, frames = _validate_points_frames(st["points"], st["frames"], prefix=prefix)
+        points, frames = validate_points_frames(st["points"], st["frames"], prefix=prefix)
         pdata = _validate_point_data(st.get("point_data"), points.shape[0], prefix=prefix)
         checked.append(dict(time=time, points=points, frames=frames, point_data=pdata))
 
@@ -475,7 +475,7 @@ def write_series(directory, basename, steps, *, xdmf=True):
             written.append(path)
 
     pvd = os.path.join(directory, basename + ".pvd")
-    with _atomic_path(pvd) as tmp:
+    with atomic_path(pvd) as tmp:
         with open(tmp, "wb") as f:
             f.write(_pvd_xml(entries))
     written.append(pvd)
@@ -510,7 +510,7 @@ def write_json(path, data):
     import json
     path = check_path("path", path)
     text = json.dumps(_jsonable(data), indent=2)
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         with open(tmp, "w") as f:
             f.write(text + "\n")
     return os.fspath(path)

@@ -687,7 +687,7 @@ class Rod:
     def dof_basis(self):
         """Sparse orthogonal matrix ``T`` (CSC) with ``y_spatial = T y_local``
         over all dofs: the :meth:`support_basis` blocks at their nodes, the
-        identity elsewhere; None when no node has a basis.
+        identity elsewhere; None when no node has a basis other than the identity.
 
         Examples
         --------
@@ -702,7 +702,10 @@ class Rod:
         >>> bool(np.allclose(T[6 * n:6 * n + 3, 6 * n:6 * n + 3].toarray(), Q))
         True
         """
-        nodes = [(n, sup.basis) for n, sup in self.supports.items() if sup.basis is not None]
+        # an identity basis changes nothing: not formed (no work, bitwise the
+        # same solve as without it)
+        nodes = [(n, sup.basis) for n, sup in self.supports.items()
+                 if sup.basis is not None and not np.array_equal(sup.basis, np.eye(3))]
         if not nodes:
             return None
         import scipy.sparse as sp

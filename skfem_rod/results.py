@@ -47,6 +47,7 @@ class ContactState:
     slip_T: np.ndarray = None    # (m, 3) slip increments of the step
     slip_R: np.ndarray = None
     dissipation: float = 0.0     # friction work dissipated in the step
+    min_distance: float = None   # true smallest distance between strands (centrelines)
 
     @property
     def friction(self):
@@ -93,54 +94,57 @@ class Result:
         self.log = []
 
     # building ----------------------------------------------------------
-    def append(self, lam, r, R, info, time=None):
-        """Add a converged step (used by the solver while it follows the load
-        path; ``info`` holds its residual (in the supports' bases, see
-        ``Rod.support_basis``; reactions are stored spatial), iterations and
-        internal work).
+    def append(self, lam, r, R, report, time=None):
+        """Add a converged step (used by the solvers while they follow the
+        load path): ``report`` is the step's :class:`skfem_rod.newton.Report`
+        (its evaluation's residual is in the supports' bases, see
+        ``Rod.support_basis``; reactions are stored spatial).
         """
-        res = info.get("res")
+        ev = report.evaluation
         reactions = {}
         for n in self.rod.supports:
-            if res is None:
+            if ev is None:
                 reactions[n] = (np.zeros(3), np.zeros(3))
             else:
+                res = ev.residual
                 f, m = res[6 * n:6 * n + 3].copy(), res[6 * n + 3:6 * n + 6].copy()
                 Q = self.rod.supports[n].basis
                 if Q is not None:           # the residual is in the support's basis
                     f, m = Q @ f, Q @ m
                 reactions[n] = (f, m)
-        iw = info.get("iw")
         contact = None
-        if iw is not None and getattr(iw, "contact", None) is not None:
-            pairs, fN, _ = iw.contact
-            radius = self.rod.contact.radius
-            act = fN > 0
-            contact = ContactState(
-                s=pairs.s[act], s_bar=pairs.s_bar[act],
-                gap=2 * radius - pairs.distance[act], force=fN[act],
-                normal=pairs.normal[act], weight=pairs.weight[act],
-                penetration=float(info.get("penetration", 0.0)),
-                uzawa=int(info.get("uzawa", 0)),
-                uzawa_converged=bool(info.get("uzawa_converged", True)),
-                newton_total=int(info.get("newton_total", info["iterations"])),
-                candidates=int(pairs.n_candidates))
-            fr = getattr(iw, "friction", None)
-            if fr is not None:
-                w = pairs.weight[fr.index]
-                contact.force_T, contact.force_R = fr.force_T, fr.force_R
-                contact.state_T, contact.state_R = fr.state_T, fr.state_R
-                contact.slip_T, contact.slip_R = fr.slip_T, fr.slip_R
-                contact.dissipation = float(np.sum(w * (np.sum(fr.force_T * fr.slip_T, 1)
-                                                        + np.sum(fr.force_R * fr.slip_R, 1))))
+        if ev is not None and ev.contact is not None:
+            contact = self._contact_state(ev.contact, report)
         self.steps.append(Step(load_factor=float(lam), r=r.copy(), R=R.copy(),
-                               iterations=int(info["iterations"]),
-                               residual_history=list(info["history"]),
-                               energy=float(iw.energy) if iw is not None else 0.0,
+                               iterations=int(report.iterations),
+                               residual_history=list(report.history),
+                               energy=float(ev.internal.energy) if ev is not None else 0.0,
                                reactions=reactions, contact=contact,
                                time=float(lam if time is None else time),
-                               flow_steps=int(info.get("flow_steps", 0)),
-                               lowest_eigenvalue=info.get("lowest_eigenvalue")))
+                               flow_steps=int(report.flow_steps),
+                               lowest_eigenvalue=report.lowest_eigenvalue))
+
+    def _contact_state(self, ce, report):
+        """:class:`ContactState` of a converged contact evaluation."""
+        pairs, fN = ce.pairs, ce.fN
+        act = fN > 0
+        contact = ContactState(
+            s=pairs.s[act], s_bar=pairs.s_bar[act],
+            gap=2 * self.rod.contact.radius - pairs.distance[act], force=fN[act],
+            normal=pairs.normal[act], weight=pairs.weight[act],
+            penetration=float(report.penetration), uzawa=int(report.uzawa),
+            uzawa_converged=bool(report.uzawa_converged),
+            newton_total=int(report.newton_total or report.iterations),
+            candidates=int(pairs.n_candidates), min_distance=report.min_distance)
+        fr = ce.friction
+        if fr is not None:
+            w = pairs.weight[fr.index]
+            contact.force_T, contact.force_R = fr.force_T, fr.force_R
+            contact.state_T, contact.state_R = fr.state_T, fr.state_R
+            contact.slip_T, contact.slip_R = fr.slip_T, fr.slip_R
+            contact.dissipation = float(np.sum(w * (np.sum(fr.force_T * fr.slip_T, 1)
+                                                    + np.sum(fr.force_R * fr.slip_R, 1))))
+        return contact
 
     def finish(self, converged, message):
         """Record how the solve ended (used by the solver).

@@ -29,7 +29,7 @@ __all__ = [
     "hat", "vee", "expm", "logm", "tangent", "tangent_inv",
     "dtangent_matrix", "dtangent_form", "d2tangent_form", "coefficients",
     "quat_from_matrix", "matrix_from_quat", "quat_multiply", "quat_from_rotvec",
-    "is_rotation",
+    "is_rotation", "rotate", "spin_between",
 ]
 
 _SERIES_T = 2.0      # below this angle the coefficients use Taylor series
@@ -282,3 +282,15 @@ def is_rotation(R, tol=1e-10):
     R = np.asarray(R, dtype=float)
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
     return (err < tol) & (np.abs(np.linalg.det(R) - 1) < tol)
+
+
+def rotate(R, w, alpha=1.0):
+    """The configuration update of rotations: ``expm(alpha w) R`` (spatial
+    spins ``w``, one per rotation).  Its inverse is :func:`spin_between`."""
+    return expm(alpha * np.asarray(w)) @ R
+
+
+def spin_between(R, R_ref):
+    """The spatial rotation vector ``w`` with ``R = expm(w) R_ref``:
+    ``logm(R R_ref^T)`` (the inverse of :func:`rotate`, for ``|w| < pi``)."""
+    return logm(R @ np.swapaxes(R_ref, -1, -2))

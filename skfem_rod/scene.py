@@ -494,20 +494,21 @@ CONTACT = _contact_keys()
 
 
 def _solver_keys():
-    from .solver import SolverOptions
-    d = {f.name: f.default for f in fields(SolverOptions)}
-    checks = {
-        "rtol": POSITIVE, "increment_tol": POSITIVE, "max_iterations": Integer(1, 10_000),
-        "line_search": Boolean(), "max_backtracks": Integer(1, 100),
-        "max_spin_update": POSITIVE, "max_growth": POSITIVE, "min_step": POSITIVE,
-        "max_rotation_step": POSITIVE, "grow": Number(1, lo_open=False),
-        "snap": Choice("cut", "relax"), "stability": Boolean(), "relax_tol": POSITIVE,
-        "relax_dt": POSITIVE, "max_flow_steps": Integer(1, 10_000_000),
-        "predictor": Choice("none", "secant"), "clearance_cap": Boolean(),
-    }
+    from .options import option_specs
+
+    def checker(spec):          # the scene's validator of a SolverOptions spec
+        if spec.kind == "number":
+            return Number(spec.lo, spec.hi, lo_open=spec.lo_open)
+        if spec.kind == "integer":
+            return Integer(spec.lo, spec.hi)
+        if spec.kind == "boolean":
+            return Boolean()
+        return Choice(*spec.choices)
+    specs = option_specs()
     keys = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
             "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times")}
-    keys.update({n: Key(checks[n], d[n]) for n in d})
+    keys.update({n: Key(checker(spec), default, spec.doc)
+                 for n, (spec, default) in specs.items()})
     keys["method"] = Key(Choice("newton", "arclength"), "newton",
                          "load stepping, or pseudo-arclength continuation (through limit "
                          "points; path must be [0, lam_end], n_steps sets the first step)")

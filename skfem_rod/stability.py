@@ -41,7 +41,7 @@ do not depend on this scaling (Sylvester), their sizes do.
 
 >>> import numpy as np
 >>> from skfem_rod import Rod, Section, geometry
->>> rod = Rod(geometry.straight(1.0), Section(1e4, 1e4, 1e4, 1.0, 1.0, 1.0), 8)
+>>> rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=1.0), 8)
 >>> rod.clamp("start").add_force("end", [-1.0, 0.0, 0.0])   # doctest: +ELLIPSIS
 <skfem_rod.model.Rod object at ...>
 >>> exact = lambda lam: (rod.r0 * (1 - lam / 1e4), rod.R0)   # uniform compression
@@ -56,7 +56,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .solver import _System, _prescribed_increment, make_options, newton
+from .newton import newton
+from .options import make_options
+from .problem import Problem
 
 #: the automatic shift starts at ``-SHIFT_FLOOR * max|diag K|`` (numerical zero)
 SHIFT_FLOOR = 1e-13
@@ -122,16 +124,13 @@ class CriticalLoad:
 
 
 # ----------------------------------------------------------------------------
-def free_tangent(system, r, R, lam):
+def free_tangent(problem, r, R, lam):
     """Tangent on the free dofs at ``(r, R, lam)``: returns ``(K_free, info)``
     with ``K_free`` CSC (constrained rows and columns removed) and ``info``
-    the relative equilibrium residual and the free-dof mask."""
-    res, K, f_ext, _ = system.evaluate(r, R, lam)
-    free = system.free
-    idx = np.flatnonzero(free)
-    Kf = K.tocsc()[idx][:, idx].tocsc()
-    scale = max(np.linalg.norm(f_ext), np.linalg.norm(res[~free]), 1e-300)
-    return Kf, dict(residual=float(np.linalg.norm(res[free]) / scale), free=free)
+    the relative equilibrium residual and the free-dof mask
+    (:meth:`skfem_rod.problem.Problem.free_tangent`)."""
+    Kf, residual = problem.free_tangent(r, R, lam)
+    return Kf, dict(residual=residual, free=problem.free)
 
 
 def inertia(A, shift=0.0):
@@ -209,8 +208,10 @@ def symmetric_eigen(Ks, k, sigma=None):
     return w[order], V[:, order], shift, negative
 
 
-def _modes(system, r, R, lam, k, sigma):
-    Kf, info = free_tangent(system, r, R, lam)
+def modes(problem, r, R, lam, k, sigma=None):
+    """:class:`Modes`: the ``k`` lowest eigenpairs (or nearest ``sigma``) of the
+    symmetrized tangent of ``problem`` on the free dofs at ``(r, R, lam)``."""
+    Kf, info = free_tangent(problem, r, R, lam)
     nK = spla.norm(Kf)
     skew = float(spla.norm(Kf - Kf.T))
     asym = skew / nK if nK > 0 else 0.0
@@ -219,7 +220,7 @@ def _modes(system, r, R, lam, k, sigma):
     # deterministic sign: largest component positive
     big = np.argmax(np.abs(V), axis=0)
     V = V * np.sign(V[big, np.arange(V.shape[1])])
-    full = np.zeros((V.shape[1], system.mesh.n_dofs))
+    full = np.zeros((V.shape[1], problem.mesh.n_dofs))
     full[:, info["free"]] = V.T
     full = full.reshape(V.shape[1], -1, 6)
     return Modes(values=w, positions=full[..., :3].copy(), spins=full[..., 3:].copy(),
@@ -261,7 +262,7 @@ def lowest_eigenvalues(rod, r, R, lam, k=6, sigma=None):
     Examples
     --------
     >>> from skfem_rod import Rod, Section, geometry
-    >>> rod = Rod(geometry.straight(1.0), Section(1e4, 1e4, 1e4, 1.0, 1.0, 1.0), 4)
+    >>> rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=1.0), 4)
     >>> rod.clamp("start")                      # doctest: +ELLIPSIS
     <skfem_rod.model.Rod object at ...>
     >>> m = lowest_eigenvalues(rod, rod.r0, rod.R0, 0.0, k=3)
@@ -271,7 +272,7 @@ def lowest_eigenvalues(rod, r, R, lam, k=6, sigma=None):
     _check_rod(rod)
     r = np.asarray(r, float)
     R = np.asarray(R, float)
-    return _modes(_System(rod), r, R, float(lam), k, sigma)
+    return modes(Problem(rod), r, R, float(lam), k, sigma)
 
 
 def critical_load(rod, state_fn, lam_lo, lam_hi, tol=1e-8, k=1, method="bisection"):
@@ -301,12 +302,12 @@ def critical_load(rod, state_fn, lam_lo, lam_hi, tol=1e-8, k=1, method="bisectio
         raise ValueError(f"method must be 'bisection' or 'illinois', got {method!r}")
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
-    system = _System(rod)
+    problem = Problem(rod)
     history = []
 
     def at(lam):
         r, R = state_fn(lam)
-        m = _modes(system, np.asarray(r, float), np.asarray(R, float), lam, k, None)
+        m = modes(problem, np.asarray(r, float), np.asarray(R, float), lam, k, None)
         history.append((float(lam), m.lowest))
         return m
 
@@ -347,7 +348,7 @@ def critical_load(rod, state_fn, lam_lo, lam_hi, tol=1e-8, k=1, method="bisectio
 class EquilibriumPath:
     """``lam -> (r, R)``: equilibria of ``rod`` by Newton continuation.
 
-    Each call starts Newton (:func:`skfem_rod.solver.newton`) from the
+    Each call starts Newton (:func:`skfem_rod.newton.newton`) from the
     cached converged state nearest in load factor and steps toward ``lam``
     in increments of at most ``max_step`` (halved when Newton fails).
     Along a symmetric fundamental path (a perfect column, a beam bent in its
@@ -369,18 +370,18 @@ class EquilibriumPath:
         self.rod = rod
         self.max_step = float(max_step)
         self.opts = make_options(options)
-        self.system = _System(rod)
+        self.problem = Problem(rod)
         self.states = {}
         self.newton_iterations = 0
         r, R = self._newton(rod.r0.copy(), rod.R0.copy(), 0.0, 0.0)
         self.states[0.0] = (r, R)
 
     def _newton(self, r, R, lam, dlam):
-        ok, r, R, info = newton(self.system, r, R, lam,
-                                _prescribed_increment(self.rod, dlam), self.opts)
-        self.newton_iterations += info["iterations"]
-        if not ok:
-            raise RuntimeError(f"Newton failed at load factor {lam:g}: {info['reason']}")
+        r, R, _, rep = newton(self.problem, r, R, lam, self.opts,
+                              prescribed=self.problem.prescribed(dlam))
+        self.newton_iterations += rep.iterations
+        if not rep.converged:
+            raise RuntimeError(f"Newton failed at load factor {lam:g}: {rep.reason}")
         return r, R
 
     def __call__(self, lam):
@@ -495,7 +496,7 @@ def plot_path(result, quantity=None, ax=None, filename=None, xlabel="load factor
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     if filename is not None:
-        from .export import _atomic_path
-        with _atomic_path(filename) as tmp:
+        from .export import atomic_path
+        with atomic_path(filename) as tmp:
             ax.figure.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
     return ax

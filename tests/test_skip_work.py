@@ -28,7 +28,7 @@ from skfem_rod import Rod, Section, geometry
 from skfem_rod import assembly as assembly_mod
 from skfem_rod import mesh as mesh_mod
 from skfem_rod import model as model_mod
-from skfem_rod import solver as solver_mod
+from skfem_rod import problem as problem_mod
 from skfem_rod.contact import assembly as contact_assembly_mod
 from skfem_rod.contact import friction as friction_mod
 from skfem_rod.contact import search as search_mod
@@ -76,7 +76,7 @@ def test_contact_off_no_search_no_contact_assembly(monkeypatch):
     res = rod.solve(n_steps=2)
     assert res.converged, res.message
     # and the phase timers of the system never saw contact work
-    system = solver_mod._System(rod)
+    system = problem_mod.Problem(rod)
     system.evaluate(rod.r0, rod.R0, 1.0)
     assert not any(k.startswith("contact") for k in system.timers)
     assert all(st.contact is None for st in res.steps)
@@ -160,7 +160,7 @@ def _counters(monkeypatch):
             n["shape_operator"] += 1            # a real computation, not a cache hit
         return real_shape(mesh)
     monkeypatch.setattr(assembly_mod, "shape_operator", shape_operator)
-    monkeypatch.setattr(solver_mod, "shape_operator", shape_operator)
+    monkeypatch.setattr(problem_mod, "shape_operator", shape_operator)
 
     def wrap(owner, name, key):
         real = getattr(owner, name)
@@ -173,7 +173,7 @@ def _counters(monkeypatch):
     wrap(mesh_mod.RodMesh, "__post_init__", "mesh")
     wrap(model_mod, "reference_strains", "reference_strains")
     wrap(model_mod.Rod, "fixed_dofs", "fixed_dofs")
-    wrap(solver_mod._System, "evaluate", "evaluate")
+    wrap(problem_mod.Problem, "evaluate", "evaluate")
     return n
 
 
@@ -194,7 +194,7 @@ def test_set_up_work_is_done_once_per_solve_not_per_iteration(monkeypatch, n_ste
     assert during["shape_operator"] == 1
     assert during["pattern"] == 0 and during["mesh"] == 0
     assert during["reference_strains"] == 0
-    assert during["fixed_dofs"] <= 2          # check_constraints + _System, once each
+    assert during["fixed_dofs"] <= 2          # check_constraints + Problem, once each
     # a second solve of the same rod reuses the cached shape operator
     before = n["shape_operator"]
     assert rod.solve(n_steps=1).converged

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from scipy.special import jv
 
 from skfem_rod import Rod, Section, geometry, stability
-from skfem_rod.solver import _System
+from skfem_rod.problem import Problem
 from skfem_rod.stability import (EquilibriumPath, critical_load, inertia,
                                  lowest_eigenvalues)
 
@@ -176,8 +176,8 @@ def test_unloaded_clamped_rod_is_stable(shape):
     assert m.negative == 0 and np.all(m.values > 0)
     assert m.residual == 0.0 or m.residual < 1e-12
     # against a dense solver on the free dofs
-    system = _System(rod)
-    _, K, _, _ = system.evaluate(rod.r0, rod.R0, 0.0)
+    system = Problem(rod)
+    K = system.evaluate(rod.r0, rod.R0, 0.0).tangent
     free = system.free
     Kf = K.toarray()[np.ix_(free, free)]
     Ks = 0.5 * (Kf + Kf.T)
@@ -199,8 +199,8 @@ def test_shift_near_a_given_value_and_inertia():
     rod = column(4, EI2=EI)
     r, R = column_state(rod)(30.0)            # far beyond buckling: several negative
     m = lowest_eigenvalues(rod, r, R, 30.0, k=4)
-    system = _System(rod)
-    _, K, _, _ = system.evaluate(r, R, 30.0)
+    system = Problem(rod)
+    K = system.evaluate(r, R, 30.0).tangent
     free = system.free
     Kf = K.toarray()[np.ix_(free, free)]
     w = np.linalg.eigvalsh(0.5 * (Kf + Kf.T))

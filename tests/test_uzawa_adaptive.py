@@ -7,7 +7,7 @@ import pytest
 
 from helpers import load_demo
 from skfem_rod import Rod
-from skfem_rod.solver import _System
+from skfem_rod.problem import Problem
 from test_contact import SEC, hairpin
 
 
@@ -82,11 +82,13 @@ def test_bad_adaptive_penalty_options(name, value):
 def test_penalty_factors_saved_and_restored_with_the_multipliers(friction):
     rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 8)
     rod.enable_contact(gamma_T=0.3 if friction else 0.0)
-    system = _System(rod)
-    saved = system.save_multipliers()
-    system.multipliers += 1.0
-    system.penalty_scale *= 16.0
-    system.friction_scale = 64.0
-    system.restore_multipliers(saved)
-    assert np.all(system.multipliers == 0.0)
-    assert np.all(system.penalty_scale == 1.0) and system.friction_scale == 1.0
+    problem = Problem(rod)
+    saved = problem.multipliers.copy()
+    m = problem.multipliers
+    m.normal += 1.0
+    m.penalty_scale *= 16.0
+    m.friction_scale = 64.0
+    problem.multipliers = saved
+    assert np.all(problem.multipliers.normal == 0.0)
+    assert np.all(problem.multipliers.penalty_scale == 1.0)
+    assert problem.multipliers.friction_scale == 1.0

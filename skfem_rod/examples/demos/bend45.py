@@ -114,7 +114,7 @@ def plot(filename, P, tips, window_size=(640, 480)):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from skfem_rod.export import _atomic_path
+    from skfem_rod.export import atomic_path
 
     dpi = 100
     fig, ax = plt.subplots(figsize=(window_size[0] / dpi, window_size[1] / dpi), dpi=dpi)
@@ -131,7 +131,7 @@ def plot(filename, P, tips, window_size=(640, 480)):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="center left")
     fig.tight_layout()
-    with _atomic_path(filename) as tmp:
+    with atomic_path(filename) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)
     plt.close(fig)
     return filename

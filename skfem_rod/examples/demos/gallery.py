@@ -121,11 +121,11 @@ def thumbnail(src, dst, width=THUMBNAIL_WIDTH):
     ``dst`` (atomically)."""
     from PIL import Image
 
-    from skfem_rod.export import _atomic_path
+    from skfem_rod.export import atomic_path
 
     dst = pathlib.Path(dst)
     dst.parent.mkdir(parents=True, exist_ok=True)
-    with _atomic_path(dst) as tmp:
+    with atomic_path(dst) as tmp:
         if str(src).endswith(".gif"):
             shutil.copyfile(src, tmp)
         else:

@@ -144,9 +144,9 @@ def main(out="output/twisted_ring", n_elements=24, turn=2 * np.pi, max_steps=300
                 ylabel="slide of B along AB  (R)")
     axes[1].axhline(2 * RADIUS - 2 * RADIUS / 3, color="0.5", lw=0.8, ls=":")
     fig.suptitle("twisted ring: equilibrium path (solid stable, dashed unstable)")
-    from skfem_rod.export import _atomic_path
+    from skfem_rod.export import atomic_path
     plot = os.path.join(out, "twisted_ring_path.png")
-    with _atomic_path(plot) as tmp:
+    with atomic_path(plot) as tmp:
         fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
     plt.close(fig)
     renders = []

@@ -1,0 +1,262 @@
+r"""The augmented-Lagrangian loop of contact and friction (the paper's Uzawa
+iteration, sec. 4 and 6): the one outer loop around any inner solve --
+Newton at a load step, a continuation corrector, the gradient flow.
+
+In plain sight::
+
+    multipliers saved
+    pass 0: inner solve at fixed multipliers
+    repeat:
+        penetration  = max d          (d = 2 eps - distance, slave points)
+        open gap under force, friction multipliers' movement
+        done when all three are below their tolerances, or max_uzawa passes
+        lambda_N <- [lambda_N + d / mu_N]_+ ;  lambda_T, lambda_R <- f_T, f_R
+        adapt the penalty where a violation did not drop (Bertsekas)
+        next pass: inner solve from the last converged state
+    failed inner solve: multipliers restored, failure returned
+
+The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
+where a point's violation did not drop by a factor 4 over an update, its
+penalty stiffness grows by ``penalty_growth`` for the rest of the step
+(each step starts at the nominal penalty).  The converged answer is that
+of the fixed penalty to the tolerances; only the path to it changes.
+"""
+import numpy as np
+
+from .contact.law import gap, uzawa_update
+
+#: the adaptive penalty raises the penalty at a point whose violation did
+#: not drop below this fraction of the last one (Bertsekas' 0.25)
+PENALTY_DROP = 0.25
+#: Uzawa goes on while the true penetration (between slave points) exceeds
+#: the tolerance and the slave points still press by more than this
+#: fraction of it; below, the overlap is one the slave points cannot see
+PRESSING = 0.0
+
+
+def augmented_lagrangian(problem, solve_pass):
+    """Uzawa updates of the contact (and friction) multipliers of
+    ``problem`` around ``solve_pass``.
+
+    Parameters
+    ----------
+    problem : :class:`skfem_rod.problem.Problem`
+    solve_pass : callable ``previous -> (r, R, lam, report)``: the inner
+        solve at the current multipliers; ``previous`` is None on the first
+        pass, else the ``(r, R, lam)`` the last pass converged to.
+
+    Returns
+    -------
+    ``(r, R, lam, report)`` of the last pass, with the loop's figures in the
+    report (``uzawa``, ``newton_total``, ``penetration``,
+    ``uzawa_converged``, ``uzawa_note``, ``penalty_scale``).  On a failed
+    inner solve the multipliers are put back as they were.
+    """
+    c = problem.contact
+    if c is None:
+        return solve_pass(None)
+    saved = problem.multipliers.copy()
+    total, uzawa = 0, 0
+    last = np.full(problem.multipliers.normal.size, np.inf)   # violations of the last pass
+    last_moved = np.inf
+    previous = None
+    tol = c.tolerance * c.radius
+    while True:
+        r, R, lam, rep = solve_pass(previous)
+        total += rep.iterations
+        if not rep.converged:
+            problem.multipliers = saved
+            rep.newton_total = total
+            return r, R, lam, rep
+        previous = (r, R, lam)
+        ce = rep.evaluation.contact
+        pairs, fN = ce.pairs, ce.fN
+        d = gap(pairs.distance, c.radius)
+        pen = float(d.max(initial=0.0))
+        # complementarity too: no force where the gap is open beyond the
+        # tolerance (a multiplier left over from a higher load pushes apart)
+        opened = float(np.max(-d[fN > 0], initial=0.0))
+        done = pen <= tol and opened <= tol
+        m = problem.multipliers
+        if ce.crossing is not None:                  # point pairs of crossing strands
+            dc = gap(ce.crossing.distance, c.radius)
+            pen = max(pen, float(dc.max(initial=0.0)))
+            opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
+            done = pen <= tol and opened <= tol
+        if problem.friction:
+            moved, lam_T, lam_R = friction_update(problem, ce.friction)
+            rep.friction_moved = moved
+            done = done and moved <= c.friction_tolerance
+        if done and true_distance(problem, r, rep) > tol and not at_an_end(problem, rep) \
+                and pen > PRESSING * tol and uzawa < c.max_uzawa:
+            # the strands overlap between slave points by more than the
+            # tolerance while the slave points still press: one more update
+            # pushes every pressed point further out
+            done = False
+        if done or uzawa == c.max_uzawa:
+            scale = float(m.penalty_scale.max(initial=1.0))
+            if not done:
+                rep.uzawa_note = (
+                    f"Uzawa stopped after {uzawa} updates with penetration {pen:.3e} "
+                    f"and open gap under force {opened:.3e} (tolerance {tol:.3e})"
+                    + (f" and friction multipliers moving by {rep.friction_moved:.3e} "
+                       f"gamma f_N (tolerance {c.friction_tolerance:g})"
+                       if problem.friction else "")
+                    + (f"; penalty raised up to {scale:.3g} times" if scale > 1 else ""))
+            # back to the nominal penalty: at the converged multipliers the
+            # state is an equilibrium for any penalty (to the tolerances), and
+            # the stability check and the next step see the nominal tangent
+            problem.multipliers = m.nominal_penalty()
+            rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
+            rep.uzawa_converged, rep.penalty_scale = done, scale
+            if rep.min_distance is None:
+                true_distance(problem, r, rep)
+            if true_overlap(problem, rep) > tol:
+                if at_an_end(problem, rep):
+                    rep.uzawa_note = (rep.uzawa_note + "; " if rep.uzawa_note else "") + (
+                        f"an end of the rod overlaps a strand by "
+                        f"{true_overlap(problem, rep) / c.radius:.3g} eps (s = "
+                        f"{rep.min_distance_at[0]:.6g}, {rep.min_distance_at[1]:.6g}): the "
+                        "ends are not contact points")
+                else:
+                    fail_overlap(problem, rep)
+                    problem.multipliers = saved
+            return r, R, lam, rep
+        mu = c.penalty / m.penalty_scale[pairs.slave]
+        new = np.zeros_like(m.normal)
+        new[pairs.slave] = uzawa_update(d, m.normal[pairs.slave], mu)
+        if c.penalty_growth > 1:
+            if problem.friction:
+                last_moved = adapt_friction_penalty(problem, fN, new, moved, last_moved)
+            last = adapt_penalty(problem, pairs, d, fN, new, last)
+        m.normal = new
+        if problem.friction:
+            m.tangential, m.rotational = lam_T, lam_R
+        if ce.crossing is not None:
+            old = carry_crossing(m, ce.crossing)
+            m.crossing_key, m.crossing = ce.crossing.key, uzawa_update(dc, old, c.crossing_penalty)
+        uzawa += 1
+
+
+def carry_crossing(m, cp):
+    """The crossing multipliers of the pairs ``cp`` (0 for new element pairs)."""
+    from .contact.crossing import carry
+    return carry(m.crossing_key, m.crossing, cp.key)
+
+
+def true_distance(problem, r, rep):
+    """The true smallest distance between non-neighbouring strands at the
+    state ``r`` (closest points of element pairs, both parameters free:
+    :func:`skfem_rod.contact.crossing.min_distance`), recorded in the
+    report (``min_distance``, and where); returns the true penetration
+    ``2 eps - distance``.  Slave points sample the rod at Gauss points
+    only: crossing strands can overlap between them, and along a curved
+    line contact the penetration peaks between them."""
+    from .contact.crossing import min_distance
+    c = problem.contact
+    md = min_distance(problem.mesh, r, c.radius, c.exclusion)
+    rep.min_distance = float(md.distance)
+    rep.min_distance_at = (float(md.s), float(md.s_bar))
+    return md.penetration(c.radius)
+
+
+def at_an_end(problem, rep):
+    """True when the closest approach of the report involves an end of an
+    open rod: the paper's slave set (Gauss points) leaves the end caps
+    without contact, so an overlap there is reported (Result.log) but does
+    not fail the step."""
+    mesh = problem.mesh
+    if mesh.closed or rep.min_distance_at is None:
+        return False
+    L = problem.rod.length
+    return any(min(abs(s), abs(L - s)) <= 1e-9 * L for s in rep.min_distance_at)
+
+
+def true_overlap(problem, rep):
+    """``2 eps - min_distance`` of the report (``-inf`` without strands in reach)."""
+    return 2.0 * problem.contact.radius - rep.min_distance
+
+
+def fail_overlap(problem, rep):
+    """A state whose true penetration exceeds the tolerance is not
+    converged: the report says where and what to do."""
+    c = problem.contact
+    s, s_bar = rep.min_distance_at
+    rep.converged = False
+    rep.reason = (f"the strands overlap by {true_overlap(problem, rep) / c.radius:.3g} eps "
+                  f"between slave points (s = {s:.6g} and {s_bar:.6g}; tolerance "
+                  f"{c.tolerance:g} eps): "
+                  + ("refine the mesh or raise n_slave" if c.crossing else
+                     "switch on crossing contact (enable_contact(crossing=True)), refine "
+                     "the mesh or raise n_slave"))
+
+
+def adapt_penalty(problem, pairs, d, fN, new, last):
+    """The penalty update of the method of multipliers (Bertsekas,
+    *Constrained Optimization and Lagrange Multiplier Methods*, 1982,
+    sec. 2.2; Nocedal & Wright, *Numerical Optimization*, framework 17.3),
+    per slave point, after the Uzawa update ``lambda_N -> new``.
+
+    Uzawa converges linearly, by the factor ``k / (k + 1/mu)`` per update
+    where the structure's stiffness ``k`` against the point's gap is large
+    compared with the penalty stiffness ``1/mu`` (a line contact whose force
+    redistributes between neighbouring points: factors 0.97-0.99 measured
+    in the plectoneme, docs/friction.md).  The violation of a point is
+    ``|d|`` where it penetrates or carries a force across an open gap; a
+    point still short of its tolerance -- ``|d| > tolerance eps``, or, with
+    friction, a multiplier change above ``friction_tolerance max f_N`` (the
+    friction bound ``gamma f_N`` moves with it) -- whose violation did not
+    drop below :data:`PENALTY_DROP` times the last one gets its penalty
+    stiffness multiplied by ``penalty_growth``, up to ``max_penalty_scale``
+    times the nominal one.  Returns the violations (``inf`` where no
+    contact), the ``last`` of the next call."""
+    c, m = problem.contact, problem.multipliers
+    act = (d > 0) | (fN > 0)
+    viol = np.full(m.normal.size, np.inf)
+    viol[pairs.slave[act]] = np.abs(d[act])
+    short = np.isfinite(viol) & (viol > c.tolerance * c.radius)
+    if problem.friction and fN.size:
+        short |= np.isfinite(viol) & (np.abs(new - m.normal) > c.friction_tolerance * fN.max())
+    grow = short & (viol > PENALTY_DROP * last)
+    m.penalty_scale = np.where(
+        grow, np.minimum(m.penalty_scale * c.penalty_growth, c.max_penalty_scale),
+        m.penalty_scale)
+    return viol
+
+
+def adapt_friction_penalty(problem, fN, new, moved, last):
+    """The same rule for the friction compliances, with one factor for all
+    points: the friction stiffness grows by ``penalty_growth`` when the
+    friction multipliers still move by more than ``friction_tolerance``
+    (relative to ``gamma max f_N``), their movement did not drop below
+    :data:`PENALTY_DROP` times the last, and it is friction's own: more than
+    twice what the change of the Coulomb bound ``gamma f_N`` explains (the
+    normal multipliers' change relative to ``max f_N``; that part is left to
+    the normal penalty).  Returns the movement, the ``last`` of the next
+    call."""
+    c, m = problem.contact, problem.multipliers
+    normal = (float(np.abs(new - m.normal).max(initial=0.0)) / fN.max() if fN.size else 0.0)
+    if moved > c.friction_tolerance and moved > PENALTY_DROP * last and moved > 2 * normal:
+        m.friction_scale = min(m.friction_scale * c.penalty_growth, c.max_penalty_scale)
+    return moved
+
+
+def friction_update(problem, out):
+    """Friction multipliers after an Uzawa update, ``lambda <- f`` (the
+    projected multiplier of :func:`skfem_rod.contact.friction.uzawa_update`,
+    computed by the assembler at the converged iterate, expressed at the
+    last converged state: ``multiplier_T``, ``multiplier_R``; the problem's
+    ``commit`` turns them into the accepted state's forces), and how far
+    they moved relative to the Coulomb bound ``gamma f_N`` (largest over the
+    points; 0 without active points)."""
+    c, m = problem.contact, problem.multipliers
+    lam_T = np.zeros_like(m.tangential)
+    lam_R = np.zeros_like(m.rotational)
+    lam_T[out.slave] = out.multiplier_T
+    lam_R[out.slave] = out.multiplier_R
+    moved = 0.0
+    for gamma, new, old in ((c.gamma_T, lam_T, m.tangential), (c.gamma_R, lam_R, m.rotational)):
+        if gamma > 0 and out.fN.size:
+            bound = gamma * out.fN.max()
+            moved = max(moved, float(np.abs(new - old).max()) / bound)
+    return moved, lam_T, lam_R

@@ -1,0 +1,234 @@
+r"""Newton-Raphson with the consistent tangent: the one Newton loop of the
+package (load steps, continuation correctors, proximal steps of the
+gradient flow, stability paths all call :func:`newton`).
+
+The loop, in plain sight::
+
+    evaluate G(y, lam), K(y, lam)
+    repeat:
+        converged when |G_free| <= rtol * force scale (or the update is
+            below increment_tol), the prescribed motions are all applied and
+            (continuation) the arclength equation holds
+        solve K dy = -G - K p   (p: what is left of the prescribed motion)
+        continuation: the bordered system adds dlam (two back substitutions)
+        safeguard: scale dy so that no spin exceeds max_spin_update; halve
+            while the trial leaves an element chart, is not finite, would
+            carry a strand through another (contact on), or raises the
+            residual more than max_growth times
+        y <- y (+) alpha dy,  lam <- lam + alpha dlam
+
+The force scale is :meth:`skfem_rod.problem.Problem.force_scale`: loads on
+the free dofs and the forces the supports take up, never a load that acts
+on a supported dof (that one cannot decide convergence).
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .kinematics import ElementRotationError
+from .problem import Evaluation, clearance_ok
+
+
+#: a position correction follows a Newton update that raised the residual
+#: norm by more than this factor (:func:`position_correction`)
+CORRECT_ABOVE = 10.0
+
+
+@dataclass
+class Report:
+    """What a solve of one step did: Newton's part, filled in by the outer
+    loops (augmented Lagrangian, load stepping, gradient flow) with theirs."""
+    converged: bool
+    iterations: int = 0
+    history: list = field(default_factory=list)
+    reason: str = ""
+    evaluation: Evaluation = None
+    # augmented-Lagrangian loop (contact on)
+    uzawa: int = 0
+    newton_total: int = 0
+    penetration: float = 0.0
+    min_distance: float = None
+    min_distance_at: tuple = None
+    uzawa_converged: bool = True
+    uzawa_note: str = ""
+    friction_moved: float = 0.0
+    penalty_scale: float = 1.0
+    # load stepping and gradient flow
+    flow_steps: int = 0
+    relaxed: bool = False
+    lowest_eigenvalue: float = None
+
+
+@dataclass
+class Border:
+    r"""The extra equation of pseudo-arclength continuation,
+    ``<w, Dy> + wl Dlam = target``, with ``Dy``, ``Dlam`` the increments
+    accumulated since the base point (``w`` already carries the metric), and
+    ``p`` the prescribed motion per unit load factor (constrained dofs)."""
+    w: np.ndarray
+    wl: float
+    target: float
+    Dy: np.ndarray
+    Dl: float
+    p: np.ndarray
+
+    def residual(self):
+        return float(np.dot(self.w, self.Dy) + self.wl * self.Dl - self.target)
+
+
+def safeguarded_update(problem, r, R, lam, dy, dl, opts, bound, rn):
+    """The trial ``y (+) alpha dy``, ``lam + alpha dl``: ``alpha`` starts
+    where no spin exceeds ``max_spin_update`` (with ``line_search``) and is
+    halved (at most ``max_backtracks`` times) while the trial would leave
+    an element chart, carry a strand through another (``clearance_cap``
+    with contact), or give a non-finite residual or one above ``bound``.
+    A trial that raised the residual norm ``rn`` more than
+    :data:`CORRECT_ABOVE` times gets its position correction first
+    (``position_correction``).  Returns ``((r, R, evaluation) or None,
+    alpha, why)``."""
+    alpha, why = 1.0, "residual grew too much"
+    if opts.line_search:
+        spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
+        alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+    cap = opts.clearance_cap and problem.contact is not None
+    for _ in range(opts.max_backtracks + 1):
+        try:
+            r_t, R_t = problem.update(r, R, dy, alpha)
+            if cap and not clearance_ok(problem.rod, r, r_t):
+                why = "the update would carry a strand through another"
+                alpha *= 0.5
+                continue
+            ev_t = problem.evaluate(r_t, R_t, lam + alpha * dl)
+        except ElementRotationError as err:
+            why = str(err)
+            alpha *= 0.5
+            continue
+        rn_t = problem.residual_norm(ev_t)
+        if np.isfinite(rn_t) and opts.position_correction and rn_t > CORRECT_ABOVE * rn:
+            r_t, ev_t = position_correction(problem, r_t, R_t, lam + alpha * dl, ev_t)
+            rn_t = problem.residual_norm(ev_t)
+        if not np.isfinite(rn_t):
+            why = "non-finite residual"
+        elif rn_t <= bound:
+            return (r_t, R_t, ev_t), alpha, ""
+        alpha *= 0.5
+    return None, alpha, why
+
+
+def position_correction(problem, r, R, lam, ev):
+    """One Newton step on the positions alone, rotations held: ``K_rr dr =
+    -G_r``.  Returns the corrected ``(r, evaluation)``, or the given ones
+    when the correction does not lower the residual.
+
+    At fixed rotations the internal energy is quadratic in the positions
+    (the strains ``v = Lambda^T rho'`` are linear in them, kinematics.py),
+    so this step puts the positions where the rotations want them.  A Newton
+    update of a slender rod gets the rotations nearly right but moves the
+    positions along the linearized tangents: the O(theta^2) stretch it
+    leaves is stiff (EA/EI ~ 1/eps^2) and raises the residual by orders of
+    magnitude (a roll-up by pi/2 per step: 0.12 -> 2000), after which plain
+    Newton wanders for 20 iterations.  It is applied after an update that
+    raised the residual more than :data:`CORRECT_ABOVE` times: never in the
+    quadratic regime, where the residual falls.
+    For dead and follower loads, the only loads that depend on the
+    configuration act through the rotations, so the step is exact for the
+    internal work and the loads; contact enters through its tangent."""
+    try:
+        dr = problem.factor(ev.tangent, fixed=problem.not_position)(-ev.residual)
+    except RuntimeError:
+        return r, ev
+    dr = problem.to_spatial(dr).reshape(-1, 6)[:, :3]
+    if not np.all(np.isfinite(dr)):
+        return r, ev
+    r_c = r + dr
+    if problem.contact is not None and not clearance_ok(problem.rod, r, r_c):
+        return r, ev
+    try:
+        ev_c = problem.evaluate(r_c, R, lam)
+    except ElementRotationError:
+        return r, ev
+    if problem.residual_norm(ev_c) < problem.residual_norm(ev):
+        return r_c, ev_c
+    return r, ev
+
+
+def _fail(r, R, lam, history, it, reason, ev=None):
+    return r, R, lam, Report(False, iterations=it, history=history, reason=reason,
+                             evaluation=ev)
+
+
+def newton(problem, r, R, lam, opts, prescribed=None, border=None):
+    """Newton iterations at load factor ``lam`` from ``(r, R)``.
+
+    Parameters
+    ----------
+    problem : :class:`skfem_rod.problem.Problem`
+    r, R : nodal positions and rotations to start from.
+    lam : load factor (the start value with ``border``).
+    opts : :class:`skfem_rod.options.SolverOptions`.
+    prescribed : increment of the constrained dofs still to apply (dof
+        basis), or None.
+    border : :class:`Border` (continuation), or None (``lam`` fixed).
+
+    Returns
+    -------
+    ``(r, R, lam, report)`` with a :class:`Report`; ``report.converged``.
+    """
+    fixed = problem.fixed
+    n = problem.mesh.n_dofs
+    remaining = np.zeros(n) if prescribed is None else prescribed.copy()
+    history = []
+    last_update = np.inf
+    length = problem.rod.length
+    try:
+        ev = problem.evaluate(r, R, lam)
+    except ElementRotationError as err:
+        return _fail(r, R, lam, history, 0, str(err))
+    for it in range(opts.max_iterations + 1):
+        rn = problem.residual_norm(ev)
+        scale = problem.force_scale(ev)
+        history.append(rn)
+        if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
+            return _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
+        bordered_ok = border is None or \
+            abs(border.residual()) <= 1e-8 * max(abs(border.target), 1e-300)
+        if (rn <= opts.rtol * scale or last_update <= opts.increment_tol) \
+                and not np.any(remaining) and bordered_ok:
+            return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev)
+        if it == opts.max_iterations:
+            break
+        K = ev.tangent
+        try:
+            solve = problem.factor(K)
+            dy = solve(-ev.residual - K @ remaining)
+        except RuntimeError as err:                      # singular factor
+            return _fail(r, R, lam, history, it, f"singular tangent ({err})", ev)
+        dy[fixed] = remaining[fixed]
+        dl = 0.0
+        if border is not None:
+            xq = solve(problem.load_rate(R) - K @ border.p) + border.p
+            den = float(np.dot(border.w, xq) + border.wl)
+            if not np.isfinite(den) or den == 0.0:
+                return _fail(r, R, lam, history, it, "singular bordered system", ev)
+            dl = -(border.residual() + np.dot(border.w, dy)) / den
+            dy = dy + dl * xq
+        if not np.all(np.isfinite(dy)):
+            return _fail(r, R, lam, history, it, "non-finite Newton update", ev)
+        bound = np.inf if (not opts.line_search or np.any(remaining)) \
+            else opts.max_growth * max(rn, scale)
+        accepted, alpha, why = safeguarded_update(problem, r, R, lam, dy, dl, opts, bound, rn)
+        if accepted is None:
+            return _fail(r, R, lam, history, it + 1,
+                         f"no admissible update after {opts.max_backtracks} halvings: {why}", ev)
+        r, R, ev = accepted
+        lam = lam + alpha * dl
+        if border is not None:
+            border.Dy = border.Dy + alpha * dy
+            border.Dl = border.Dl + alpha * dl
+        upd = (alpha * dy).reshape(-1, 6)
+        last_update = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max()))
+        remaining = remaining * (1.0 - alpha)
+        remaining[np.abs(remaining) < 1e-300] = 0.0
+    return _fail(r, R, lam, history, opts.max_iterations,
+                 f"no convergence in {opts.max_iterations} iterations "
+                 f"(residual {history[-1]:.3e})", ev)

@@ -1,0 +1,192 @@
+"""Options of the solvers, validated in one place.
+
+:class:`SolverOptions` holds every control of Newton (:mod:`skfem_rod.newton`),
+load stepping (:mod:`skfem_rod.solver`), the gradient flow
+(:mod:`skfem_rod.relax`) and continuation (:mod:`skfem_rod.continuation`);
+:func:`make_options` builds it from keyword arguments with a clear error for
+unknown names.  The contact options are
+:class:`skfem_rod.contact.ContactOptions`.
+"""
+import difflib
+import numbers
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What a field accepts (the one place an option is checked): ``kind``
+    is ``"number"`` (finite, bounded by ``lo``/``hi``, open or closed),
+    ``"integer"`` (``lo`` to ``hi``), ``"boolean"`` or ``"choice"``
+    (``choices``); ``doc`` is the one-line meaning for tables."""
+    kind: str
+    doc: str
+    lo: float = None
+    hi: float = None
+    lo_open: bool = True
+    choices: tuple = ()
+
+    def allowed(self):
+        """The allowed values in words (error messages, docs tables)."""
+        if self.kind == "boolean":
+            return "true or false"
+        if self.kind == "choice":
+            q = [repr(c) for c in self.choices]
+            return ", ".join(q[:-1]) + " or " + q[-1] if len(q) > 1 else q[0]
+        if self.kind == "integer":
+            return (f"an integer in [{self.lo}, {self.hi}]" if self.hi is not None
+                    else f"an integer >= {self.lo}")
+        op = ">" if self.lo_open else ">="
+        return f"a finite number {op} {self.lo:g}" if self.lo is not None else "a finite number"
+
+    def check(self, name, v):
+        """``v`` if it is allowed, else ValueError naming ``name``, the
+        value and what is allowed (no coercion: ``True`` is no number)."""
+        ok = True
+        if self.kind == "boolean":
+            ok = isinstance(v, (bool, np.bool_))
+        elif self.kind == "choice":
+            ok = isinstance(v, str) and v in self.choices
+        elif self.kind == "integer":
+            ok = (isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_))
+                  and v >= self.lo and (self.hi is None or v <= self.hi))
+        else:
+            ok = (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+                  and np.isfinite(v)
+                  and (self.lo is None or v > self.lo or (not self.lo_open and v == self.lo))
+                  and (self.hi is None or v <= self.hi))
+        if not ok:
+            raise ValueError(f"{name} must be {self.allowed()}, got {v!r}")
+        return v
+
+
+def _opt(default, kind, doc, **kw):
+    return field(default=default, metadata={"spec": Spec(kind, doc, **kw)})
+
+
+def _pos(default, doc):
+    return _opt(default, "number", doc, lo=0.0)
+
+
+@dataclass
+class SolverOptions:
+    """Controls of :func:`solve`.
+
+    rtol : converged when ``|R_free| <= rtol * max(|f_ext|, |reactions|)``,
+        or when the last Newton update was below ``increment_tol``
+        (positions in units of the rod length, spins in radians).  The
+        residual of a stiff rod stagnates at a round-off floor that grows
+        with the mesh (5e-7 at 1000 elements, 1.5e-5 at 10000 for EA/EI =
+        1e4) while the Newton updates keep converging quadratically to
+        1e-14, so the update, not the residual, tells convergence there.
+    max_iterations : Newton iterations per step before the step is cut.
+    line_search : safeguard the Newton update: scale it so that no nodal
+        spin exceeds ``max_spin_update``, and halve it (at most
+        ``max_backtracks`` times) while the trial state leaves an element
+        chart, is not finite, or raises the residual norm more than
+        ``max_growth`` times.  (A residual-norm or energy-slope merit test
+        vetoes good Newton steps of stiff rods: one full step from a
+        straight rod raises the residual 2000x through O(theta^2) axial
+        strain, and the next step converges; see docs/theory.md.)
+    min_step : smallest load-factor step before the solve gives up.
+    max_rotation_step : largest prescribed end rotation per step (rad).
+    grow : factor by which a cut step grows back after a success.
+    snap : what to do when a load step fails: ``"cut"`` (default) halves
+        the step until ``min_step``; ``"relax"`` first tries the gradient
+        flow (proximal continuation, :mod:`skfem_rod.relax`) at the step's
+        load factor, which crosses a snap (no nearby equilibrium) into the
+        stable equilibrium on the other side, and cuts only if that fails.
+    stability : compute the lowest eigenvalue of the symmetrized tangent at
+        every converged step (``Step.lowest_eigenvalue``); with
+        ``snap="relax"`` a step that converged to an unstable equilibrium is
+        pushed off it along the unstable mode and relaxed.
+    relax_tol : the gradient flow stops when the viscous force is below
+        ``relax_tol`` times the force scale (then Newton polishes).
+    relax_dt : first pseudo-time step of the flow (metric of
+        :func:`skfem_rod.relax.metric`).
+    max_flow_steps : accepted proximal steps per flow before giving up.
+    predictor : start of each step's Newton iterations: ``"none"`` (default)
+        the last converged state; ``"secant"`` the last converged state
+        moved along the secant of the last two (scaled to the new load
+        increment; supported dofs stay where the load path puts them).  On a
+        smooth path the secant start saves most iterations and keeps Newton
+        in the basin of the equilibrium it follows (a loose knot, whose
+        loops swing freely, diverges from the plain start).
+    clearance_cap : with contact on (default true), halve a Newton update
+        (and the secant predictor) while it moves two non-neighbouring nodes
+        relative to each other by more than half their clearance
+        (:func:`skfem_rod.relax.clearance_ok`), so that no iterate can carry
+        a strand through another.  Without it, the first update of a step
+        that brings strands into contact (no contact stiffness in the
+        tangent yet) can put one strand on the far side of another, and the
+        solve converges there: a hairpin leg pressed by a large force ends
+        up through the other leg (``tests/test_predictor_cap.py``).
+    position_correction : after a Newton update that raised the residual,
+        one Newton step on the positions alone with the rotations held
+        (default true; :func:`skfem_rod.newton.position_correction`): the
+        roll-up of a slender rod by pi/2 per step takes 3-4 iterations per
+        step instead of 23.
+    """
+    rtol: float = _pos(1e-10, "residual tolerance on the free dofs (relative to the loads "
+                              "on them and the forces the supports take up)")
+    increment_tol: float = _pos(1e-11, "converged when the last Newton update is below it "
+                                       "(positions relative to the rod length, spins in "
+                                       "radians)")
+    max_iterations: int = _opt(25, "integer", "Newton iterations per step before the step "
+                                              "is cut", lo=1, hi=10_000)
+    line_search: bool = _opt(True, "boolean", "safeguard the Newton update (spin limit, "
+                                              "backtracking)")
+    max_backtracks: int = _opt(6, "integer", "halvings of a Newton update", lo=1, hi=100)
+    max_spin_update: float = _pos(0.5 * np.pi, "largest nodal spin of one Newton update (rad)")
+    max_growth: float = _pos(1e6, "largest accepted growth of the residual norm in one "
+                                  "update")
+    min_step: float = _pos(1e-6, "smallest pseudo-time step before the solve stops")
+    max_rotation_step: float = _pos(0.5 * np.pi, "largest prescribed rotation per step (rad)")
+    grow: float = _opt(2.0, "number", "growth factor of a cut step after two successes",
+                       lo=1.0, lo_open=False)
+    snap: str = _opt("cut", "choice", "when a step fails: cut it, or first relax by a "
+                                      "gradient flow through the snap (skfem_rod.relax)",
+                     choices=("cut", "relax"))
+    stability: bool = _opt(False, "boolean", "lowest eigenvalue of the symmetrized tangent "
+                                             "at every converged step")
+    relax_tol: float = _pos(1e-8, "gradient flow stops when the viscous force is below this "
+                                  "times the force scale")
+    relax_dt: float = _pos(1.0, "first pseudo-time step of the gradient flow")
+    max_flow_steps: int = _opt(20000, "integer", "proximal steps per flow before giving up",
+                               lo=1, hi=10_000_000)
+    predictor: str = _opt("none", "choice", "start of each step's Newton iterations: the last "
+                                            "converged state, or that state moved along the "
+                                            "secant of the last two",
+                          choices=("none", "secant"))
+    clearance_cap: bool = _opt(True, "boolean", "with contact: halve a Newton update while it "
+                                                "would move two non-neighbouring nodes toward "
+                                                "each other by more than half their clearance "
+                                                "(no strand carried through another)")
+    position_correction: bool = _opt(True, "boolean", "after a Newton update that raised the "
+                                                      "residual 10x, one Newton step on the "
+                                                      "positions with the rotations held")
+
+    def __post_init__(self):
+        for f in fields(self):
+            f.metadata["spec"].check(f.name, getattr(self, f.name))
+
+
+def option_specs(cls=None):
+    """``{name: (Spec, default)}`` of the fields of ``cls`` (default
+    :class:`SolverOptions`): what the scene format and the docs tables are
+    built from."""
+    cls = SolverOptions if cls is None else cls
+    return {f.name: (f.metadata["spec"], f.default) for f in fields(cls)}
+
+
+def make_options(kwargs):
+    """:class:`SolverOptions` from keyword arguments; an unknown name is an
+    error with the closest allowed one."""
+    names = [f.name for f in fields(SolverOptions)]
+    for k in kwargs:
+        if k not in names:
+            close = difflib.get_close_matches(k, names, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ValueError(f"unknown solver option {k!r}{hint} Allowed: {', '.join(names)}")
+    return SolverOptions(**kwargs)
