@@ -15,7 +15,7 @@ import numpy as np
 from .assembly import reference_strains
 from .geometry import Shape
 from .loads import PointLoad, DistributedLoad
-from . import validation
+import skfem_rod.validation as validation
 from .validation import finite_vector
 from .mesh import RodMesh
 from .section import Section

@@ -69,7 +69,7 @@ class _Bad(Exception):
         self.note = note
 
 
-def _show(v, limit=80):
+def show_value(v, limit=80):
     """A value as it would read in TOML (shortened)."""
     if isinstance(v, np.ndarray) and v.ndim == 0:
         v = v.item()
@@ -82,10 +82,10 @@ def _show(v, limit=80):
         s = (str(int(v)) if f is None else "nan" if math.isnan(f)
              else ("inf" if f > 0 else "-inf") if math.isinf(f) else repr(f))
     elif isinstance(v, (list, tuple, np.ndarray)):
-        s = "[" + ", ".join(_show(x, limit) for x in list(v)[:8]) \
+        s = "[" + ", ".join(show_value(x, limit) for x in list(v)[:8]) \
             + (", ..." if len(v) > 8 else "") + "]"
     elif isinstance(v, dict):
-        s = "{" + ", ".join(f"{k} = {_show(x, limit)}" for k, x in list(v.items())[:4]) \
+        s = "{" + ", ".join(f"{k} = {show_value(x, limit)}" for k, x in list(v.items())[:4]) \
             + (", ..." if len(v) > 4 else "") + "}"
     else:
         s = f"{v!r} ({type(v).__name__})"
@@ -239,7 +239,7 @@ class Points:
             try:
                 out.append(Vector()(p))
             except _Bad as bad:
-                raise _Bad(f"item {k} = {_show(p)} is not [x, y, z]"
+                raise _Bad(f"item {k} = {show_value(p)} is not [x, y, z]"
                            + (f" ({bad.note})" if bad.note else "")) from None
         return out
 
@@ -283,7 +283,7 @@ class Axes:
             try:
                 rows.append(Vector(nonzero=True)(a))
             except _Bad as bad:
-                raise _Bad(f"axes[{k}] = {_show(a)} is not a non-zero [x, y, z]"
+                raise _Bad(f"axes[{k}] = {show_value(a)} is not a non-zero [x, y, z]"
                            + (f"; {bad.note}" if bad.note else "")) from None
         A = np.array(rows)
         A /= np.abs(A).max(axis=1, keepdims=True)      # no overflow in the norm
@@ -556,13 +556,13 @@ class _Checker:
             return check(v), True
         except _Bad as bad:
             note = f" ({bad.note})" if bad.note else ""
-            self.bad(f"{path} = {_show(v)}: expected {check.expected}{note}")
+            self.bad(f"{path} = {show_value(v)}: expected {check.expected}{note}")
             return None, False
 
     def table(self, path, v, what):
         if isinstance(v, dict):
             return True
-        self.bad(f"{path} = {_show(v)}: expected a table ({what})")
+        self.bad(f"{path} = {show_value(v)}: expected a table ({what})")
         return False
 
     def keys(self, path, table, allowed, label, others=None, tag=None):
@@ -640,11 +640,11 @@ def _section_kind(table, checker):
     return next(iter(present), "stiffness")
 
 
-def _validate(data):
+def validate_data(data):
     c = _Checker()
     if not isinstance(data, dict):
         raise SceneError([f"a scene must be a table of tables ([rod], [section], ...), "
-                          f"got {_show(data)}"])
+                          f"got {show_value(data)}"])
     c.keys("", data, list(TOP), "the top level")
     out = {}
     if "title" in data:
@@ -683,11 +683,11 @@ def _validate(data):
                                    ("load", LOADS, LOAD_COMMON)):
         items = data.get(name, [])
         if isinstance(items, dict):
-            c.bad(f"{name} = {_show(items)}: expected an array of tables "
+            c.bad(f"{name} = {show_value(items)}: expected an array of tables "
                   f"([[{name}]] entries, one per {name}), got a single table")
             continue
         if not isinstance(items, (list, tuple)):
-            c.bad(f"{name} = {_show(items)}: expected an array of tables ([[{name}]])")
+            c.bad(f"{name} = {show_value(items)}: expected an array of tables ([[{name}]])")
             continue
         out[name] = []
         for k, item in enumerate(items):
@@ -707,9 +707,10 @@ def _validate(data):
         c.bad(f"solver.path: with method = \"arclength\" the path must be [0, lam_end] "
               f"(the continuation turns back by itself), got {sv.get('path')!r}")
     if "sweep" in data:        # each swept value validated as the key it replaces
-        from .sweeps import validate_sweep
+        from .sweep_table import validate_sweep
         out["sweep"], problems = validate_sweep(
-            data["sweep"], {k: v for k, v in data.items() if k != "sweep"}, c.problems)
+            data["sweep"], {k: v for k, v in data.items() if k != "sweep"}, c.problems,
+            validate=validate_data, show=show_value, error=SceneError)
         c.problems += problems
 
     if c.problems:
@@ -742,13 +743,13 @@ def _call(path, keys, f, *args, **kwargs):
 
 
 def _shape(g):
-    from . import geometry
+    import skfem_rod.geometry as geometry
     kw = {k: v for k, v in g.items() if k != "type" and v is not None}
     if g["type"] == "straight" and g["d1"] is not None:
         t, d1 = (np.asarray(v) / np.abs(v).max() for v in (g["direction"], g["d1"]))
         if np.linalg.norm(np.cross(t, d1)) < 1e-8 * np.linalg.norm(t) * np.linalg.norm(d1):
-            raise SceneError([f"rod.geometry.d1 = {_show(g['d1'])}: expected a vector "
-                              f"not parallel to direction = {_show(g['direction'])}"])
+            raise SceneError([f"rod.geometry.d1 = {show_value(g['d1'])}: expected a vector "
+                              f"not parallel to direction = {show_value(g['direction'])}"])
     return _call("rod.geometry", list(kw), getattr(geometry, g["type"]), **kw)
 
 
@@ -763,7 +764,7 @@ def _section(s):
         for k in range(6):
             if not kw["C"][k][k] > 0:
                 raise SceneError([f"section.matrix: diagonal entry [{k}][{k}] = "
-                                  f"{_show(kw['C'][k][k])}: expected > 0 (the stiffness "
+                                  f"{show_value(kw['C'][k][k])}: expected > 0 (the stiffness "
                                   "must be positive definite)"])
     else:
         f = Section
@@ -779,7 +780,7 @@ def _same_basis(bases, node, axes, who):
     if np.abs(a - b).max() > AXES_TOL:
         def say(x):
             return ("no axes (x, y, z)" if x is None
-                    else f"axes = {_show(np.round(np.asarray(x), 9).tolist(), 120)}")
+                    else f"axes = {show_value(np.round(np.asarray(x), 9).tolist(), 120)}")
         raise SceneError([
             f"{who} has {say(axes)} but {prev[0]} at the same node {node} has "
             f"{say(prev[1])}: the pin, fix_rotation and prescribe_displacement supports "
@@ -799,7 +800,7 @@ def _build(d):
 
     def node(path, where):
         if not isinstance(where, str) and where > rod.length * (1 + 1e-12):
-            raise SceneError([f"{path}.where = {_show(where)}: expected an arclength in "
+            raise SceneError([f"{path}.where = {show_value(where)}: expected an arclength in "
                               f"[0, {rod.length:g}] (the rod length)"])
         return _call(path, ["where"], rod.node, where)
 
@@ -807,7 +808,7 @@ def _build(d):
     for k, sup in enumerate(d["support"]):      # conflicts: Rod's own check (Support.hold)
         path, kind = f"support[{k}]", sup["kind"]
         n = node(path, sup["where"])
-        who = f"{path} ({kind} at {_show(sup['where'])})"
+        who = f"{path} ({kind} at {show_value(sup['where'])})"
         args = {k: v for k, v in sup.items() if k not in ("kind", "where", "axes")}
         if "axes" in sup:                  # pin, fix_rotation, prescribe_displacement
             _same_basis(bases, n, sup["axes"], who)
@@ -1166,6 +1167,6 @@ def load_scene(source, name=None):
         name = name or pathlib.Path(src).stem
     else:
         data = source
-    d = _validate(data)
+    d = validate_data(data)
     rod = _build(d)
     return Scene(d, name=name or "scene", source=src, _rod=rod)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import validation
+import skfem_rod.validation as validation
 from .validation import positive
 
 _NAMES = ("GA1", "GA2", "EA", "EI1", "EI2", "GJ")

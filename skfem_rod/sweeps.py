@@ -34,19 +34,17 @@ Dask, xarray and h5netcdf are the optional extra ``sweep``
 (``pip install skfem_rod[sweep]``); they are imported only when a sweep
 runs.
 """
-import copy
 import hashlib
 import itertools
 import json
 import logging
-import math
-import numbers
 import os
-import re
 import time
 from dataclasses import dataclass
 
 import numpy as np
+
+from .sweep_table import label, parse_key, put_path, validate_sweep
 
 __all__ = ["sweep", "sweep_points", "run_point", "open_sweep", "local_cluster", "SweepPoint"]
 
@@ -54,77 +52,12 @@ log = logging.getLogger("skfem_rod.sweep")
 
 #: version of the point files; part of every point's key
 FORMAT = 1
-MODES = ("grid", "zip")
-#: most points of one sweep
-MAX_POINTS = 100_000
 #: files of a sweep directory
 POINTS_DIR, DATASET = "points", "sweep.nc"
 #: fill value of the integer step variables past a point's last step
 MISSING = -1
 #: samples of the centreline for twist, writhe and link (Result.topology)
 TOPOLOGY_SAMPLES = 2000
-
-_TOKEN = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")
-
-
-# ---------------------------------------------------------------------------
-# keys: "load[0].vector[2]" -> ["load", 0, "vector", 2]
-# ---------------------------------------------------------------------------
-def parse_key(key):
-    """The path of a dotted key as a list of names and indices, or None."""
-    out = []
-    for part in str(key).split("."):
-        m = _TOKEN.fullmatch(part)
-        if m is None:
-            return None
-        out.append(m.group(1))
-        out += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
-    return out
-
-
-def _get(data, path):
-    for p in path:
-        data = data[p]
-    return data
-
-
-def _put(data, path, value):
-    """A deep copy of ``data`` with ``value`` at ``path``; raises KeyError
-    (a table or entry on the way is missing) or IndexError."""
-    data = copy.deepcopy(data)
-    parent = _get(data, path[:-1])
-    last = path[-1]
-    if isinstance(last, int):
-        if not isinstance(parent, list):
-            raise KeyError(f"{_show_path(path[:-1])} is not an array")
-        parent[last] = value              # IndexError past its end
-    else:
-        if not isinstance(parent, dict):
-            raise KeyError(f"{_show_path(path[:-1])} is not a table")
-        parent[last] = value
-    return data
-
-
-def _show_path(path):
-    s = ""
-    for p in path:
-        s += f"[{p}]" if isinstance(p, int) else (("." if s else "") + p)
-    return s
-
-
-def _flatten(table, prefix=""):
-    """Nested tables (TOML's unquoted ``contact.gamma_T = ...``) as dotted
-    keys; the reserved ``mode`` stays."""
-    out = {}
-    for k, v in table.items():
-        name = f"{prefix}.{k}" if prefix else str(k)
-        if isinstance(v, dict) and not (prefix == "" and k == "mode"):
-            out.update(_flatten(v, name))
-        else:
-            if name in out:
-                raise ValueError(name)
-            out[name] = v
-    return out
 
 
 def _strip(d):
@@ -136,94 +69,6 @@ def _strip(d):
     return d
 
 
-# ---------------------------------------------------------------------------
-# validation (called by skfem_rod.scene for the [sweep] table)
-# ---------------------------------------------------------------------------
-def validate_sweep(table, base, known=()):
-    """Check a ``[sweep]`` table against the scene ``base`` (a scene table
-    without ``sweep``); returns ``(sweep, problems)``, ``sweep`` being
-    ``{"mode": ..., "parameters": {key: [values]}}`` with every value
-    normalized as its key is.  Each value is validated by validating
-    ``base`` with the value put in: the problems it adds to ``known``
-    (those of ``base`` itself) are the value's.
-    """
-    from .scene import SceneError, _show, _validate
-    problems = []
-    if not isinstance(table, dict):
-        return None, [f"sweep = {_show(table)}: expected a table [sweep] of dotted scene "
-                      'keys and their values, e.g. "contact.gamma_T" = [0.0, 0.1]']
-    try:
-        flat = _flatten(table)
-    except ValueError as err:
-        return None, [f'sweep."{err}" is given twice (as a dotted key and a nested table)']
-    mode = flat.pop("mode", "grid")
-    if mode not in MODES:
-        problems.append(f"sweep.mode = {_show(mode)}: expected one of "
-                        + ", ".join(json.dumps(m) for m in MODES))
-    if not flat:
-        problems.append('sweep has no parameters: expected dotted scene keys with arrays '
-                        'of values, e.g. "contact.gamma_T" = [0.0, 0.1]')
-    known = set(known)
-    params = {}
-    for key, values in flat.items():
-        where = f'sweep."{key}"'
-        path = parse_key(key)
-        if path is None or len(path) < 2:
-            problems.append(f"{where} is not a scene key: expected a dotted path into the "
-                            'scene such as "contact.gamma_T", "section.E" or '
-                            '"load[0].vector[2]"')
-            continue
-        if isinstance(values, np.ndarray):
-            values = values.tolist()
-        if not isinstance(values, (list, tuple)) or not values:
-            problems.append(f"{where} = {_show(values)}: expected a non-empty array of "
-                            "values of " + _show_path(path))
-            continue
-        out, ok = [], True
-        for i, v in enumerate(values):
-            try:
-                new = _validate(_put(base, path, v))
-            except (KeyError, IndexError, TypeError) as err:
-                problems.append(f"{where}: the scene has no {_show_path(path)} to sweep "
-                                f"({err.args[0] if err.args else 'missing'}); sweep a key "
-                                "of a table or entry the scene has")
-                ok = False
-                break
-            except SceneError as err:
-                mine = [p for p in err.problems if p not in known]
-                problems += [f"{where}[{i}]: {p}" for p in mine]
-                ok = ok and not mine
-                continue
-            out.append(_get(new, path))
-        if not ok:
-            continue
-        labels = [_label(v) for v in out]
-        if mode != "zip" and len(set(labels)) != len(labels):
-            problems.append(f"{where} = {_show(values)}: the values of a grid axis must "
-                            "differ")
-            continue
-        params[key] = out
-    if mode == "zip" and len({len(v) for v in params.values()}) > 1:
-        problems.append("sweep: with mode = \"zip\" every key needs as many values ("
-                        + ", ".join(f'"{k}": {len(v)}' for k, v in params.items()) + ")")
-    n = _count(params, mode)
-    if n > MAX_POINTS:
-        problems.append(f"sweep: {n} points, more than {MAX_POINTS}; split the study")
-    return dict(mode=mode, parameters=params), problems
-
-
-def _count(params, mode):
-    if not params:
-        return 0
-    return len(next(iter(params.values()))) if mode == "zip" \
-        else math.prod(len(v) for v in params.values())
-
-
-def _label(v):
-    """A coordinate label: the value itself if it is a scalar, else JSON."""
-    if isinstance(v, (bool, str, numbers.Real)):
-        return v
-    return json.dumps(v)
 
 
 # ---------------------------------------------------------------------------
@@ -252,7 +97,8 @@ def point_key(data, centreline=False, vtu=False):
     """Stable hash of a validated scene's content (what the solve sees:
     not its title, outputs or sweep), of the skfem_rod version and of
     what the point keeps besides its figures (centreline, VTU series)."""
-    from . import __version__
+    import skfem_rod                    # the package's version (its __init__ defines it)
+    __version__ = skfem_rod.__version__
     content = {k: v for k, v in data.items() if k not in ("title", "output", "sweep")}
     keep = {k: True for k, on in (("centreline", centreline), ("vtu", vtu)) if on}
     text = json.dumps([FORMAT, __version__, content] + ([keep] if keep else []),
@@ -300,7 +146,7 @@ def sweep_points(scene, parameters=None, mode=None, centreline=False, vtu=False)
     >>> len(pts), pts[5].index, pts[5].values
     (6, (1, 2), {'section.E': 20000000.0, 'load[0].vector[2]': -3.0})
     """
-    from .scene import SceneError, _validate
+    from .scene import SceneError, show_value, validate_data
     data, _, _ = _base(scene)
     base = _strip({k: v for k, v in data.items() if k != "sweep"})
     if parameters is None:
@@ -310,11 +156,15 @@ def sweep_points(scene, parameters=None, mode=None, centreline=False, vtu=False)
                               'given: add [sweep] with e.g. "contact.gamma_T" = [0.0, 0.1]'])
         spec = dict(spec, mode=mode or spec["mode"])
         if spec["mode"] != data["sweep"]["mode"]:     # re-check the zip lengths
-            spec, problems = validate_sweep(dict(spec["parameters"], mode=spec["mode"]), base)
+            spec, problems = validate_sweep(dict(spec["parameters"], mode=spec["mode"]), base,
+                                            validate=validate_data, show=show_value,
+                                            error=SceneError)
             if problems:
                 raise SceneError(problems)
     else:
-        spec, problems = validate_sweep(dict(parameters, mode=mode or "grid"), base)
+        spec, problems = validate_sweep(dict(parameters, mode=mode or "grid"), base,
+                                        validate=validate_data, show=show_value,
+                                        error=SceneError)
         if problems:
             raise SceneError(problems)
     keys = list(spec["parameters"])
@@ -328,9 +178,9 @@ def sweep_points(scene, parameters=None, mode=None, centreline=False, vtu=False)
     for idx, vals in combos:
         d = base
         for k, v in zip(keys, vals):
-            d = _put(d, parse_key(k), v)
+            d = put_path(d, parse_key(k), v)
         points.append(SweepPoint(tuple(idx), dict(zip(keys, vals)), d,
-                                 point_key(_validate(d), centreline, vtu)))
+                                 point_key(validate_data(d), centreline, vtu)))
     return points, spec
 
 
@@ -576,7 +426,7 @@ def assemble(points, spec, records, meta):
     coords = {"step": np.arange(n_steps), "xyz": ["x", "y", "z"],
               "support": np.arange(n_sup)}
     for k, vals in spec["parameters"].items():
-        lab = [_label(v) for v in vals]
+        lab = [label(v) for v in vals]
         coords[k] = (k, lab) if grid else ("point", lab)
     if not grid:
         coords["point"] = np.arange(len(points))
@@ -771,7 +621,7 @@ def _report(done, total, point, rec):
 
 def progress_line(done, total, point, rec):
     """One line per finished point (logged to ``skfem_rod.sweep``)."""
-    vals = "  ".join(f"{k} = {_label(v)}" for k, v in point.values.items())
+    vals = "  ".join(f"{k} = {label(v)}" for k, v in point.values.items())
     state = "converged" if rec["converged"] else "stopped: " + rec["message"]
     return (f"[{done:{len(str(total))}d}/{total}] {vals}  {state}  "
             f"({rec['n_steps']} steps, {rec['wall_time']:.2f} s)")

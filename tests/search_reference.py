@@ -6,7 +6,7 @@ quadratic in memory when elements are much shorter than the radius."""
 import numpy as np
 from scipy.spatial import cKDTree
 
-from skfem_rod.contact.search import Pairs, _capsules, _coefficients, _empty, _project
+from skfem_rod.contact.search import Pairs, _capsules, monomial_coefficients, _empty, _project
 
 
 def search_dense(mesh, r, slaves, reach, exclusion):
@@ -35,7 +35,7 @@ def search_dense(mesh, r, slaves, reach, exclusion):
     """
     ne, ns = slaves.s.shape
     r_el = r[mesh.nodes]                                     # (ne, 4, 3)
-    C = _coefficients(r_el).transpose(1, 2, 0)               # (4, 3, ne)
+    C = monomial_coefficients(r_el).transpose(1, 2, 0)               # (4, 3, ne)
     x = np.einsum("qI,eIc->eqc", slaves.N, r_el).reshape(-1, 3)
     s_sl = slaves.s.ravel()
     p0, p1, dev = _capsules(r_el)                            # sub-arc capsules

@@ -12,7 +12,7 @@ from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import law
 from skfem_rod.contact.crossing import (carry, closest_points, crossing_pairs, crossing_work,
                                         min_distance)
-from skfem_rod.contact.search import _coefficients, arc_distance, search, slave_points
+from skfem_rod.contact.search import monomial_coefficients, arc_distance, search, slave_points
 from skfem_rod.element import shape_functions
 from skfem_rod.mesh import RodMesh
 
@@ -99,8 +99,8 @@ def test_closest_points_are_stationary_and_global():
         d /= np.linalg.norm(d, axis=2, keepdims=True)
         return a + u * d + 0.1 * rng.normal(size=(m, 4, 3))
 
-    C1 = _coefficients(elements(0.0)).transpose(1, 2, 0)
-    C2 = _coefficients(elements(0.5)).transpose(1, 2, 0)
+    C1 = monomial_coefficients(elements(0.0)).transpose(1, 2, 0)
+    C2 = monomial_coefficients(elements(0.5)).transpose(1, 2, 0)
     u, v, d = closest_points(C1, C2)
     t = np.linspace(0, 1, 101)
     V = np.vander(t, 4, increasing=True)                        # (n, 4)

@@ -54,7 +54,7 @@ from scipy.spatial import cKDTree
 
 from ..element import shape_functions
 from .law import gap, normal_force, potential
-from .search import _coefficients, _curve, _period, arc_distance
+from .search import monomial_coefficients, curve_point, arclength_period, arc_distance
 
 
 def _dot(a, b):
@@ -69,8 +69,8 @@ def closest_points(C1, C2, iterations=40, grid=7, starts=3):
     interior point, are common) and the best result is kept."""
     m = C1.shape[2]
     t = np.linspace(0.0, 1.0, grid)
-    P1 = np.stack([_curve(C1, np.full(m, a))[0] for a in t])          # (g, 3, m)
-    P2 = np.stack([_curve(C2, np.full(m, a))[0] for a in t])
+    P1 = np.stack([curve_point(C1, np.full(m, a))[0] for a in t])          # (g, 3, m)
+    P2 = np.stack([curve_point(C2, np.full(m, a))[0] for a in t])
     d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2).reshape(grid * grid, m)
     k = np.argsort(d2, axis=0)[:starts].ravel()                      # (starts * m,)
     u, v, d = _newton(np.tile(C1, starts), np.tile(C2, starts), t[k // grid], t[k % grid],
@@ -86,8 +86,8 @@ def _newton(C1, C2, u, v, iterations):
     act = np.arange(u.size)
     for _ in range(iterations):
         c1, c2, ua, va = C1[:, :, act], C2[:, :, act], u[act], v[act]
-        X, X1, X2 = _curve(c1, ua)
-        Y, Y1, Y2 = _curve(c2, va)
+        X, X1, X2 = curve_point(c1, ua)
+        Y, Y1, Y2 = curve_point(c2, va)
         D = X - Y
         gu, gv = _dot(D, X1), -_dot(D, Y1)
         huu = _dot(X1, X1) + _dot(D, X2)
@@ -112,7 +112,7 @@ def _newton(C1, C2, u, v, iterations):
         for _ in range(12):
             tu = np.clip(ua[todo] - step * du[todo], 0.0, 1.0)
             tv = np.clip(va[todo] - step * dv[todo], 0.0, 1.0)
-            Dn = _curve(c1[:, :, todo], tu)[0] - _curve(c2[:, :, todo], tv)[0]
+            Dn = curve_point(c1[:, :, todo], tu)[0] - curve_point(c2[:, :, todo], tv)[0]
             ok = _dot(Dn, Dn) <= f0[todo]
             nu[todo[ok]], nv[todo[ok]] = tu[ok], tv[ok]
             todo = todo[~ok]
@@ -127,7 +127,7 @@ def _newton(C1, C2, u, v, iterations):
         act = act[moved]
         if act.size == 0:
             break
-    D = _curve(C1, u)[0] - _curve(C2, v)[0]
+    D = curve_point(C1, u)[0] - curve_point(C2, v)[0]
     return u, v, np.sqrt(_dot(D, D))
 
 
@@ -183,7 +183,7 @@ def _element_pairs(mesh, r, reach, exclusion, min_angle=None):
     e, f = np.minimum(P[:, 0], P[:, 1]).astype(np.int64), np.maximum(P[:, 0], P[:, 1]).astype(np.int64)
     keep = np.linalg.norm(centre[e] - centre[f], axis=1) - rad[e] - rad[f] < reach
     e, f = e[keep], f[keep]
-    v, period = mesh.vertices, _period(mesh)
+    v, period = mesh.vertices, arclength_period(mesh)
     # wholly inside: every point of f within the exclusion of every point of
     # e (the largest distance is between end points while both lie on an
     # arc shorter than half the ring)
@@ -224,7 +224,7 @@ class CrossingPairs:
 
 
 def _solve(mesh, e, f, r_el):
-    C = _coefficients(r_el).transpose(1, 2, 0)                 # (4, 3, ne)
+    C = monomial_coefficients(r_el).transpose(1, 2, 0)                 # (4, 3, ne)
     u, v, dist = closest_points(C[:, :, e], C[:, :, f])
     vt = mesh.vertices
     s = vt[e] + u * (vt[e + 1] - vt[e])
@@ -252,7 +252,7 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
     element pairs within ``reach`` (default ``3 radius``)."""
     reach = 3.0 * radius if reach is None else reach
     e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion)
-    period = _period(mesh)
+    period = arclength_period(mesh)
     # branch and bound: the pairs with the smallest lower bounds first, then
     # only those whose bound is below the closest admissible distance found
     order = np.argsort(lb, kind="stable")
@@ -283,10 +283,10 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(
     reach = 3.0 * radius if reach is None else reach
     e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion, min_angle)
     u, v, s, s_bar, dist, C = _solve(mesh, e, f, r_el)
-    ok = (arc_distance(s, s_bar, _period(mesh)) >= exclusion) & (dist > 0)
+    ok = (arc_distance(s, s_bar, arclength_period(mesh)) >= exclusion) & (dist > 0)
     e, f, u, v, s, s_bar, dist = e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok]
-    X, X1, _ = _curve(C[:, :, e], u)
-    Y, Y1, _ = _curve(C[:, :, f], v)
+    X, X1, _ = curve_point(C[:, :, e], u)
+    Y, Y1, _ = curve_point(C[:, :, f], v)
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(_dot(X1, X1) * _dot(Y1, Y1))
     ok = (u > 0) & (u < 1) & (v > 0) & (v < 1) & (dist < reach) & (cos < np.cos(min_angle))
     N = ((X - Y) / dist).T

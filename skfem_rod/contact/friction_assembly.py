@@ -51,7 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..rotations import hat, tangent_inv
-from . import friction as law
+import skfem_rod.contact.friction as law
 from .law import gap, normal_force
 from .assembly import cached_pattern
 from .slip import NC, NM, pulled_back, pushed, slip_kinematics

@@ -98,12 +98,12 @@ _MONO = np.linalg.inv(np.vander(np.array([0.0, 1.0, 1.0 / 3.0, 2.0 / 3.0]), 4,
                                 increasing=True))
 
 
-def _coefficients(r_el):
+def monomial_coefficients(r_el):
     """Monomial coefficients ``(m, 4, 3)`` of element curves ``r_el``."""
     return _MONO @ r_el
 
 
-def _curve(C, xi):
+def curve_point(C, xi):
     """Positions and first/second xi-derivatives ``(3, m)`` of element
     curves given by monomial coefficients ``C`` ``(4, 3, m)`` (component
     major: every operation runs on contiguous rows)."""
@@ -125,7 +125,7 @@ def _project(x, C, iterations=12):
     todo = np.arange(m)
     Ct, xt, xit = C, x, xi.copy()
     for _ in range(iterations):
-        y, y1, y2 = _curve(Ct, xit)
+        y, y1, y2 = curve_point(Ct, xit)
         g = y - xt
         n1 = np.sum(y1 * y1, axis=0)
         f = np.sum(g * y1, axis=0)
@@ -141,7 +141,7 @@ def _project(x, C, iterations=12):
                 break
         else:
             xit = new
-    y, y1, _ = _curve(C, xi)
+    y, y1, _ = curve_point(C, xi)
     g = y - x
     f = np.abs(np.sum(g * y1, axis=0))
     interior = (xi > 0.0) & (xi < 1.0) & (f <= 1e-9 * (np.sqrt(np.sum(y1 * y1, axis=0))
@@ -155,7 +155,7 @@ def project(x, r_el, iterations=12):
 
     Returns ``xi`` (m,) and a flag ``interior`` (stationary point strictly
     inside the element)."""
-    C = np.ascontiguousarray(_coefficients(r_el).transpose(1, 2, 0))
+    C = np.ascontiguousarray(monomial_coefficients(r_el).transpose(1, 2, 0))
     xi, interior, _ = _project(np.ascontiguousarray(x.T), C, iterations)
     return xi, interior
 
@@ -206,7 +206,7 @@ def _outside_exclusion(lo, hi, s, exclusion, period=None):
     return t + (hi - lo) <= period - 2.0 * exclusion
 
 
-def _period(mesh):
+def arclength_period(mesh):
     """The rod's length if it is closed (periodic arclength), else None."""
     if getattr(mesh, "closed", False):
         return float(mesh.vertices[-1] - mesh.vertices[0])
@@ -360,10 +360,10 @@ def search(mesh, r, slaves, reach, exclusion):
     refinement.
     """
     ne, ns = slaves.s.shape
-    period = _period(mesh)
+    period = arclength_period(mesh)
     v = mesh.vertices
     r_el = r[mesh.nodes]                                     # (ne, 4, 3)
-    C = _coefficients(r_el).transpose(1, 2, 0)               # (4, 3, ne)
+    C = monomial_coefficients(r_el).transpose(1, 2, 0)               # (4, 3, ne)
     x = np.einsum("qI,eIc->eqc", slaves.N, r_el).reshape(-1, 3)
     s_sl = slaves.s.ravel()
     p0, p1, dev = _capsules(r_el)                            # sub-arc capsules
