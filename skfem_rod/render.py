@@ -625,7 +625,7 @@ def _centreline_values(name, values, n):
     return a
 
 
-def _tube_point_values(values, n, m, capped=True):
+def tube_point_values(values, n, m, capped=True):
     """Per-centreline-point values spread over a tube of ``tube_mesh``
     (rings, then the two caps)."""
     out = np.repeat(values, m)
@@ -790,7 +790,7 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
                             interpolate_before_map=True, show_scalar_bar=False,
                             **_tube_actor_kwargs())
             else:
-                tube.point_data["field"] = _tube_point_values(values, n, int(n_around))
+                tube.point_data["field"] = tube_point_values(values, n, int(n_around))
                 pl.add_mesh(tube, scalars="field", clim=bar[1], cmap=cmap,
                             show_scalar_bar=False, **_tube_actor_kwargs())
                 line = pv.lines_from_points(points + 1.02 * r[:, None] * frames[:, :, 0])

@@ -704,7 +704,7 @@ class Result:
         >>> round(float(tube.point_data["moment_magnitude"].max()), 3)   # about P L at the clamp
         0.01
         """
-        from .render import _tube_point_values, tube_mesh
+        from .render import tube_point_values, tube_mesh
         f = self.sample(per_element, step)
         if radius is None:
             radius = self.rod.section.radius or 0.01 * self.rod.length
@@ -713,7 +713,7 @@ class Result:
         for name, value in self._line_fields(f, step).items():
             value = np.asarray(value)
             if value.ndim == 1:
-                tube.point_data[name] = _tube_point_values(value, n, n_around)
+                tube.point_data[name] = tube_point_values(value, n, n_around)
             else:
                 tube.point_data[name] = np.vstack(
                     [np.repeat(value, n_around, axis=0),
