@@ -162,10 +162,10 @@ class Rod:
         validation.memory_budget(
             f"a rod of n_elements={n_elements} (n_quad={n_quad})",
             n_elements * (_BYTES_PER_ELEMENT[0] + _BYTES_PER_ELEMENT[1] * n_quad / 3))
-        if not np.isfinite(shape.length / (3 * n_elements)) or shape.length > 1e150:
+        if not (1e-150 <= shape.length <= 1e150):
             raise ValueError(f"shape length {shape.length!r} is out of the range a rod can "
-                             "be computed in (at most 1e150: energies scale with powers of "
-                             "the length); choose other units")
+                             "be computed in (1e-150 to 1e150: energies scale with powers "
+                             "of the length); choose other units")
         self.mesh = RodMesh(shape.length, n_elements, n_quad, closed=closed)
         with np.errstate(all="ignore"):
             self.r0, self.R0 = shape(self.mesh.s_nodes)

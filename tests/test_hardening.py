@@ -126,6 +126,8 @@ def test_distributed_callable_errors_are_named():
 def test_huge_length_is_refused_not_called_a_rigid_body_mode():
     with pytest.raises(ValueError, match=r"^shape length 1e\+300 is out of the range"):
         Rod(geometry.straight(1e300), SEC, 4)
+    with pytest.raises(ValueError, match=r"^shape length 1e-300 is out of the range"):
+        Rod(geometry.straight(1e-300), SEC, 4)        # found by the fuzz: ZeroDivisionError
     # the rigid-body check is scale free: a clamped rod in any units is held
     for L in (1e-100, 1e100):
         Rod(geometry.straight(L), SEC, 4).clamp("start").check_constraints()
