@@ -37,6 +37,9 @@ ANYTHING = st.one_of(
 
 
 def is_real(v):
+    """A real number (a 0-d numeric array is one too); bools are not."""
+    if isinstance(v, np.ndarray) and v.ndim == 0 and v.dtype.kind in "iuf":
+        return True
     return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
 
 
