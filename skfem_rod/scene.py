@@ -1047,7 +1047,19 @@ class OutputStream:
             data = summary(self.scene, self.result, wall_time)
             data["files"] = [os.path.basename(p) for p in written + [path]]
             written.append(write_json(path, data))
+        self.remove_temporary()
         return written
+
+    def remove_temporary(self):
+        """Remove this run's temporary files (a signal that lands inside an
+        atomic write's own clean-up can leave one)."""
+        import re
+        b = re.escape(self.base)
+        with contextlib.suppress(OSError):
+            for name in os.listdir(self.directory):
+                if re.fullmatch(rf"\.{b}(_\d+\.vtu|\.(pvd|xdmf|json|png))\..*\.tmp", name):
+                    with contextlib.suppress(OSError):
+                        os.remove(os.path.join(self.directory, name))
 
 
 def _atomic_write(path, data):
