@@ -214,6 +214,7 @@ def _interrupted(stop, stream, directory, wall):
                 f"{what} after {kept} converged step(s)", wall_time=wall)
     except KeyboardInterrupt:           # a second signal: stop writing at once
         written = []
+        stream.remove_temporary()
     except (OSError, ValueError) as err:
         _err(f"cannot write the summary: {err}")
         written = []

@@ -95,7 +95,7 @@ def test_killed_run_leaves_a_readable_series(tmp_path, sig):
     assert "Traceback" not in stderr and "converged step(s) kept" in stderr
     times = check_series(out)
     summary = json.loads((out / "rod.json").read_text())
-    assert summary["converged"] is False and len(summary["steps"]) == len(times) >= 2
+    assert summary["converged"] is False and len(summary["steps"]) == len(times) >= 1
 
 
 @pytest.mark.slow
