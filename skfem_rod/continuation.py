@@ -484,9 +484,7 @@ def solve_arclength(rod, n_steps=1, path=None, callback=None, **options):
     """:meth:`Rod.solve` with ``method="arclength"``: :func:`follow` from
     load factor 0 to ``path[-1]`` (default 1), first load step
     ``path[-1] / n_steps``."""
-    if not (isinstance(n_steps, (int, np.integer)) and not isinstance(n_steps, bool)
-            and n_steps >= 1):
-        raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    rod.check_steps(n_steps)
     if path is None:
         lam_end = 1.0
     else:

@@ -61,8 +61,12 @@ def step(problem, r, R, lam, prescribed, opts, inner=None):
 def load_path(path):
     """Piecewise-linear load factor over pseudo-time ``t`` in [0, 1]: the
     values ``path`` are reached at equally spaced times (default 0 -> 1)."""
-    p = np.asarray([0.0, 1.0] if path is None else path, dtype=float)
-    if p.ndim != 1 or p.size < 2 or not np.all(np.isfinite(p)):
+    try:
+        p = np.asarray([0.0, 1.0] if path is None else path, dtype=float)
+    except (TypeError, ValueError):
+        p = np.zeros(0)
+    if isinstance(path, (str, bytes)) or p.ndim != 1 or p.size < 2 \
+            or not np.all(np.isfinite(p)):
         raise ValueError(f"path must be a list of >= 2 finite load factors, got {path!r}")
     if p[0] != 0.0:
         raise ValueError(f"path must start at load factor 0 (the reference), got {p[0]!r}")
@@ -243,10 +247,8 @@ def solve(rod, n_steps=1, path=None, callback=None, start=None, **kwargs):
     ``callback(result, k)`` is called after each converged step ``k``;
     ``start`` (a Result or ``(r, R)``) replaces the reference as the state
     step 0 starts from (step 0 is then an equilibrium solve)."""
-    if isinstance(n_steps, bool) or not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
-        raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    rod.check_steps(n_steps)
     times, values = load_path(path)
-    lam_of = lambda t: float(np.interp(t, times, values))         # noqa: E731
     opts = make_options(kwargs)
     rod.check_constraints()
     S = LoadStepper(rod, opts)
@@ -263,6 +265,14 @@ def solve(rod, n_steps=1, path=None, callback=None, start=None, **kwargs):
         result.finish(False, f"no equilibrium at load factor 0 from the {where}: {rep.reason}")
         return result
     S.keep(0.0, r, R, rep, 0.0, callback)
+    return follow_path(S, r, R, n_steps, times, values, callback)
+
+
+def follow_path(S, r, R, n_steps, times, values, callback):
+    """The load steps of :func:`solve` after step 0 (the loop of the module
+    doc); returns the finished result."""
+    rod, opts, result = S.rod, S.opts, S.result
+    lam_of = lambda t: float(np.interp(t, times, values))         # noqa: E731
     nominal = first_step(rod, n_steps, times, values, opts)
     t, dt, streak, prev = 0.0, nominal, 0, None
     while t < 1.0 - 1e-14:
