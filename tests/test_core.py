@@ -342,7 +342,7 @@ def test_crossing_strands_never_converge_through_each_other(crossing):
     rod.add_force(float(sn[np.argmin(abs(sn - s2))]), [0.0, 0.0, 2.0])
     rod.enable_contact(crossing=crossing)
     tol = rod.contact.tolerance * eps
-    res = rod.solve(4, min_step=1e-3)
+    res = rod.solve(4)
     assert len(res.steps) > 1
     for st in res.steps:
         md = min_distance(rod.mesh, st.r, eps, rod.contact.exclusion)
