@@ -28,10 +28,6 @@ from .contact.law import gap, uzawa_update
 #: the adaptive penalty raises the penalty at a point whose violation did
 #: not drop below this fraction of the last one (Bertsekas' 0.25)
 PENALTY_DROP = 0.25
-#: Uzawa goes on while the true penetration (between slave points) exceeds
-#: the tolerance and the slave points still press by more than this
-#: fraction of it; below, the overlap is one the slave points cannot see
-PRESSING = 0.1
 #: a state whose strands overlap by more than this fraction of the contact
 #: radius between slave points (away from the rod's ends) is not converged;
 #: an overlap between the tolerance and this is recorded (Step.contact
@@ -96,12 +92,6 @@ def augmented_lagrangian(problem, solve_pass):
             moved, lam_T, lam_R = friction_update(problem, ce.friction)
             rep.friction_moved = moved
             done = done and moved <= c.friction_tolerance
-        if done and true_distance(problem, r, rep) > tol and not at_an_end(problem, rep) \
-                and pen > PRESSING * tol and uzawa < c.max_uzawa:
-            # the strands overlap between slave points by more than the
-            # tolerance while the slave points still press: one more update
-            # pushes every pressed point further out
-            done = False
         if done or uzawa == c.max_uzawa:
             scale = float(m.penalty_scale.max(initial=1.0))
             if not done:
@@ -118,8 +108,7 @@ def augmented_lagrangian(problem, solve_pass):
             problem.multipliers = m.nominal_penalty()
             rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
             rep.uzawa_converged, rep.penalty_scale = done, scale
-            if rep.min_distance is None:
-                true_distance(problem, r, rep)
+            true_distance(problem, r, rep)
             over = true_overlap(problem, rep)
             if over > OVERLAP_FAIL * c.radius and not at_an_end(problem, rep):
                 fail_overlap(problem, rep)

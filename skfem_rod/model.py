@@ -26,7 +26,7 @@ _vector = finite_vector
 
 def _components(components):
     """Validated spatial axis indices (a non-empty selection of 0, 1, 2)."""
-    arr = np.atleast_1d(np.asarray(components))
+    arr = np.asarray(components) if np.ndim(components) == 1 else np.zeros((0, 0))
     if (arr.ndim != 1 or arr.size == 0 or arr.dtype.kind not in "iu"
             or np.any((arr < 0) | (arr > 2))):
         raise ValueError("components must be spatial axis indices 0, 1, 2 "
