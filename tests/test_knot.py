@@ -71,7 +71,7 @@ def test_knot_is_kept_and_contact_is_resolved(runs):
     for g, sol in runs.items():
         res, rows = sol["result"], sol["rows"]
         assert res.converged, res.message
-        assert "Uzawa did not reach" not in res.message, res.message
+        assert all(st.contact.uzawa_converged for st in res.steps), res.log
         link = np.array([w["link"] for w in rows])
         assert np.ptp(link) < 0.01
         assert min(w["min_strand_distance"] for w in rows) > 1.9 * knot.EPS
