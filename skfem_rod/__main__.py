@@ -253,7 +253,11 @@ def cmd_sweep(args):
         return BAD_INPUT
     os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "warning")   # Dask's own chatter
     # SIGTERM: stop like Ctrl-C, closing the workers (finished points are on disk)
-    before = signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
+    def term(*_):
+        from .sweeps import STOP
+        STOP.request(128 + signal.SIGTERM)
+        sys.exit(128 + signal.SIGTERM)
+    before = signal.signal(signal.SIGTERM, term)
     try:
         from .sweeps import sweep, sweep_directory
         ds = sweep(scene, out=args.out, scheduler=args.scheduler, n_workers=args.workers,

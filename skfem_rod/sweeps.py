@@ -39,6 +39,7 @@ import itertools
 import json
 import logging
 import os
+import threading
 import time
 from dataclasses import dataclass
 
@@ -449,6 +450,20 @@ def open_sweep(path):
 # ---------------------------------------------------------------------------
 # the sweep
 # ---------------------------------------------------------------------------
+class _Stop(threading.Event):
+    """A stop request (the command line's SIGTERM handler sets it with its
+    exit code): the sweep stops after the point that finishes next, even
+    when the exception the handler raised was swallowed inside Dask."""
+    code = 1
+
+    def request(self, code):
+        self.code = code
+        self.set()
+
+
+STOP = _Stop()
+
+
 def sweep(scene, parameters=None, mode=None, out=None, scheduler=None, n_workers=None,
           resume=True, progress=None, on_step=None, centreline=False, vtu=False):
     """Solve a scene at every point of a parameter sweep on Dask.
@@ -607,6 +622,8 @@ def _run(todo, name, folder, n_sup, scheduler, n_workers, progress, options, don
             _report(done, total, p, rec)
             if progress is not None:
                 progress(done, total, p, rec)
+            if STOP.is_set():       # a stop request that Dask's machinery swallowed
+                raise SystemExit(STOP.code)
     finally:
         if client is not scheduler:
             client.close()
