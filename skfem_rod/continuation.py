@@ -54,7 +54,7 @@ from .options import make_options
 from .problem import Problem
 from .results import Result
 from .stability import modes
-from .validation import positive
+from .validation import count, positive
 
 
 @dataclass
@@ -265,14 +265,6 @@ class Point(NamedTuple):
     tl: float
 
 
-def _check(name, value, lo=None, integer=False):
-    if integer:
-        if isinstance(value, bool) or not (isinstance(value, (int, np.integer)) and value >= lo):
-            raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
-        return int(value)
-    return positive(name, value)
-
-
 def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iterations=4, ds_max=None,
            ds_min=None, load_scale=None, stability=False, n_eigen=3, locate=True,
            locate_tol=1e-6, start=None, stop=None, callback=None, **options):
@@ -313,9 +305,9 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
     -------
     PathResult
     """
-    max_steps = _check("max_steps", max_steps, 1, integer=True)
-    target_iterations = _check("target_iterations", target_iterations, 1, integer=True)
-    n_eigen = _check("n_eigen", n_eigen, 1, integer=True)
+    max_steps = count("max_steps", max_steps, 1)
+    target_iterations = count("target_iterations", target_iterations, 1)
+    n_eigen = count("n_eigen", n_eigen, 1)
     if lam_stop is not None and not np.isfinite(lam_stop):
         raise ValueError(f"lam_stop must be a finite number or None, got {lam_stop!r}")
     if not isinstance(stability, bool):
