@@ -27,7 +27,9 @@ _vector = finite_vector
 def _components(components):
     """Validated spatial axis indices (a non-empty selection of 0, 1, 2)."""
     arr = np.asarray(components) if np.ndim(components) == 1 else np.zeros((0, 0))
-    if (arr.ndim != 1 or arr.size == 0 or arr.dtype.kind not in "iu"
+    # a bool is not an axis index (np.asarray([False, 0]) is an int array)
+    has_bool = arr.ndim == 1 and any(isinstance(c, (bool, np.bool_)) for c in components)
+    if (arr.ndim != 1 or arr.size == 0 or arr.dtype.kind not in "iu" or has_bool
             or np.any((arr < 0) | (arr > 2))):
         raise ValueError("components must be spatial axis indices 0, 1, 2 "
                          f"(x, y, z), e.g. (0, 2); got {components!r}")

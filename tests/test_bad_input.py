@@ -107,7 +107,8 @@ def test_where_must_be_an_end_or_a_node(where):
         cantilever().add_force(where, [1.0, 0.0, 0.0])
 
 
-@pytest.mark.parametrize("components", [(3,), (-1,), (0, 5), (), (0.5,), (True,)])
+@pytest.mark.parametrize("components", [(3,), (-1,), (0, 5), (), (0.5,), (True,),
+                                        (False, False, 0), (1, True)])
 @pytest.mark.parametrize("method", ["pin", "fix_rotation", "prescribe_displacement"])
 def test_support_components_must_be_axis_indices(method, components):
     rod = Rod(geometry.straight(1.0), unit_section(), 2)
