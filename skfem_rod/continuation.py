@@ -42,7 +42,7 @@ loads (dead forces; see :mod:`skfem_rod.stability`), and not with contact
 (the multipliers of the state are not part of the tangent's potential):
 ``stability=True`` with contact raises.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
 import numpy as np
@@ -265,9 +265,72 @@ class Point(NamedTuple):
     tl: float
 
 
-def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iterations=4, ds_max=None,
-           ds_min=None, load_scale=None, stability=False, n_eigen=3, locate=True,
-           locate_tol=1e-6, start=None, stop=None, callback=None, **options):
+@dataclass(frozen=True)
+class PathOptions:
+    """The step control of :func:`follow` (validated on construction).
+
+    ds : initial arclength step; None: the step of a load increment of
+        ``load_step`` along the initial tangent.
+    load_step : the initial load increment when ``ds`` is not given.
+    max_steps : converged steps before stopping.
+    target_iterations : Newton iterations per step aimed at by the step
+        control ``ds <- ds * clip(sqrt(target / iterations), 0.5, 2)``;
+        a failed step is halved.
+    ds_max, ds_min : bounds of ``ds`` (None: ``20 ds``, ``1e-6 ds``).
+    load_scale : the weight ``psi`` of the load factor in the arclength
+        (None: the size of the initial tangent, see module doc).
+    stability : compute the ``n_eigen`` lowest eigenvalues of the
+        symmetrized tangent and the Morse index at every point.
+    locate : with ``stability``, locate each change of the index by
+        bisection (:class:`CriticalPoint`) to a relative arclength bracket
+        of ``locate_tol``.
+    """
+    ds: float | None = None
+    load_step: float = 0.1
+    max_steps: int = 200
+    target_iterations: int = 4
+    ds_max: float | None = None
+    ds_min: float | None = None
+    load_scale: float | None = None
+    stability: bool = False
+    n_eigen: int = 3
+    locate: bool = True
+    locate_tol: float = 1e-6
+
+    def __post_init__(self):
+        for name in ("max_steps", "target_iterations", "n_eigen"):
+            count(name, getattr(self, name), 1)
+        for name in ("ds", "ds_max", "ds_min", "load_scale"):
+            if getattr(self, name) is not None:
+                positive(name, getattr(self, name))
+        positive("load_step", self.load_step)
+        positive("locate_tol", self.locate_tol)
+        for name in ("stability", "locate"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+
+    @classmethod
+    def split(cls, options):
+        """``(PathOptions, SolverOptions)`` from the keyword arguments of
+        :func:`follow` (unknown names go to, and are checked by,
+        :func:`skfem_rod.options.make_options`)."""
+        names = {f.name for f in fields(cls)}
+        mine = {k: v for k, v in options.items() if k in names}
+        rest = {k: v for k, v in options.items() if k not in names}
+        return cls(**mine), make_options(rest)
+
+    def steps(self, tl):
+        """``(ds, ds_min, ds_max)`` given the initial tangent's load
+        component ``tl``."""
+        ds = self.ds
+        if ds is None:            # a load increment of load_step along the initial tangent
+            ds = self.load_step / abs(tl) if abs(tl) > 1e-12 else self.load_step
+        ds_max = 20.0 * ds if self.ds_max is None else self.ds_max
+        ds_min = 1e-6 * ds if self.ds_min is None else self.ds_min
+        return ds, ds_min, ds_max
+
+
+def follow(rod, lam_stop=1.0, *, start=None, stop=None, callback=None, **options):
     r"""Follow the equilibrium path of ``rod`` in the load factor by
     pseudo-arclength continuation (module doc).
 
@@ -278,53 +341,33 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
         The path ends where it reaches this load factor (the last point is
         placed on it exactly), or after ``max_steps``; ``None``: no load
         limit.
-    ds : float, optional
-        Initial arclength step; default: the step of a load increment of
-        ``load_step`` along the initial tangent.
-    load_step : float, the initial load increment when ``ds`` is not given.
-    max_steps : converged steps before stopping.
-    target_iterations : Newton iterations per step aimed at by the step
-        control ``ds <- ds * clip(sqrt(target / iterations), 0.5, 2)``;
-        a failed step is halved.
-    ds_max, ds_min : bounds of ``ds`` (default ``20 ds``, ``1e-6 ds``).
-    load_scale : the weight ``psi`` of the load factor in the arclength
-        (default: the size of the initial tangent, see module doc).
-    stability : compute the ``n_eigen`` lowest eigenvalues of the
-        symmetrized tangent and the Morse index at every point.
-    locate : with ``stability``, locate each change of the index by
-        bisection (:class:`CriticalPoint` in ``result.critical``) to a
-        relative arclength bracket of ``locate_tol``.
     start : ``(r, R, lam, t_y, t_lam)`` to start from a converged state and
         a tangent (see :func:`switch_branch`); default: the reference
         state at load factor 0 and its tangent toward increasing load.
     stop : callable ``(result) -> bool``, ends the path when true.
     callback : callable ``(result, k)`` after each converged point.
-    **options : :class:`skfem_rod.solver.SolverOptions`.
+    **options : the step control, :class:`PathOptions` (``ds``,
+        ``load_step``, ``max_steps``, ``target_iterations``, ``ds_max``,
+        ``ds_min``, ``load_scale``, ``stability``, ``n_eigen``, ``locate``,
+        ``locate_tol``), and :class:`skfem_rod.options.SolverOptions`.
 
     Returns
     -------
     PathResult
     """
-    max_steps = count("max_steps", max_steps, 1)
-    target_iterations = count("target_iterations", target_iterations, 1)
-    n_eigen = count("n_eigen", n_eigen, 1)
+    po, opts = PathOptions.split(options)
     if lam_stop is not None and not np.isfinite(lam_stop):
         raise ValueError(f"lam_stop must be a finite number or None, got {lam_stop!r}")
-    if not isinstance(stability, bool):
-        raise ValueError(f"stability must be True or False, got {stability!r}")
-    if stability and rod.contact is not None:
+    if po.stability and rod.contact is not None:
         raise NotImplementedError(
             "stability along a path with self-contact is not supported: the eigenvalues "
             "of the tangent with the augmented-Lagrangian contact terms at fixed "
             "multipliers do not decide stability; follow the path with stability=False")
     if stop is not None and not callable(stop):
         raise ValueError("stop must be a callable (result) -> bool")
-    locate_tol = positive("locate_tol", locate_tol)
-    opts = make_options(options)
     rod.check_constraints()
-    if load_scale is not None:
-        positive("load_scale", load_scale)
-    F = Follower(rod, opts, load_scale)
+    F = Follower(rod, opts, po.load_scale)
+    F.stability, F.n_eigen, F.callback = po.stability, po.n_eigen, callback
     result = PathResult(rod)
     first = _first_point(F, start, lam_stop)
     if isinstance(first, str):
@@ -332,19 +375,19 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
         return result
     r, R, lam, ty, tl, info = first
     result.load_scale = float(np.sqrt(F.psi2))
-    if ds is None:            # a load increment of load_step along the initial tangent
-        load_step = positive("load_step", load_step)
-        ds = load_step / abs(tl) if abs(tl) > 1e-12 else load_step
-    ds = positive("ds", ds)
-    ds_max = 20.0 * ds if ds_max is None else positive("ds_max", ds_max)
-    ds_min = 1e-6 * ds if ds_min is None else positive("ds_min", ds_min)
-
-    F.stability, F.n_eigen, F.callback = stability, n_eigen, callback
     point = Point(r, R, lam, ty, tl)
-    s_path = 0.0
-    F.record(result, point, info, s_path)
-    k = 0
-    while k < max_steps:
+    F.record(result, point, info, 0.0)
+    _march(F, result, point, po, lam_stop, stop)
+    return result
+
+
+def _march(F, result, point, po, lam_stop, stop):
+    """The continuation loop of :func:`follow` from the recorded ``point``:
+    advance, halve ``ds`` on a failure, record, locate index changes, adapt
+    ``ds``; ends ``result`` with its message."""
+    ds, ds_min, ds_max = po.steps(point.tl)
+    s_path, k = 0.0, 0
+    while k < po.max_steps:
         h, new, info, land = F.advance(point, ds, lam_stop)
         if not info.converged:
             ds = 0.5 * h
@@ -353,30 +396,29 @@ def follow(rod, lam_stop=1.0, ds=None, load_step=0.1, max_steps=200, target_iter
             if ds < ds_min:
                 result.finish(False, f"stopped at load factor {point.lam:.6g}: step failed "
                                      f"({info.reason}) and ds fell below ds_min={ds_min:g}")
-                return result
+                return
             continue
         s_path += h
         k += 1
         F.record(result, new, info, s_path)
-        if stability and locate and result._index[-1] != result._index[-2]:
-            cp = _locate(F, result, point, h, locate_tol)
+        if po.stability and po.locate and result._index[-1] != result._index[-2]:
+            cp = _locate(F, result, point, h, po.locate_tol)
             if cp is not None:
                 result.critical.append(cp)
         point = new
         its = max(info.iterations, 1)
-        ds = float(np.clip(h * np.clip(np.sqrt(target_iterations / its), 0.5, 2.0),
+        ds = float(np.clip(h * np.clip(np.sqrt(po.target_iterations / its), 0.5, 2.0),
                            ds_min, ds_max))
         if land:
             result.finish(True, f"reached load factor {lam_stop:g} after {k} steps "
                                 f"(arclength {s_path:.4g})")
-            return result
+            return
         if stop is not None and stop(result):
             result.finish(True, f"stopped by the stop condition after {k} steps at load "
                                 f"factor {point.lam:.6g}")
-            return result
-    result.finish(lam_stop is None, f"{max_steps} steps done at load factor {point.lam:.6g} "
-                                    f"(arclength {s_path:.4g})")
-    return result
+            return
+    result.finish(lam_stop is None, f"{po.max_steps} steps done at load factor "
+                                    f"{point.lam:.6g} (arclength {s_path:.4g})")
 
 
 def _first_point(F, start, lam_stop):
