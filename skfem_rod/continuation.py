@@ -381,6 +381,17 @@ def follow(rod, lam_stop=1.0, *, start=None, stop=None, callback=None, **options
     return result
 
 
+#: friction is path dependent: past a limit point the path goes on along
+#: an unstable branch with the load turning back, a process that no quasi-
+#: static loading performs (it snaps there), so its dissipation is not the
+#: friction of any loading; load stepping with snap="relax" goes through.
+_FRICTION_TURNS_BACK = (
+    "stopped at the limit point near load factor {lam:.6g}: with friction the "
+    "continuation does not follow the path back along the unstable branch (friction "
+    "dissipation depends on the process, and the loading snaps here); use load stepping "
+    "(method='load', snap='relax') to go through the snap")
+
+
 def _march(F, result, point, po, lam_stop, stop):
     """The continuation loop of :func:`follow` from the recorded ``point``:
     advance, halve ``ds`` on a failure, record, locate index changes, adapt
@@ -398,6 +409,9 @@ def _march(F, result, point, po, lam_stop, stop):
                                      f"({info.reason}) and ds fell below ds_min={ds_min:g}")
                 return
             continue
+        if F.problem.friction and new.tl * point.tl < 0:
+            result.finish(False, _FRICTION_TURNS_BACK.format(lam=point.lam))
+            return
         s_path += h
         k += 1
         F.record(result, new, info, s_path)

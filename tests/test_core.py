@@ -122,6 +122,39 @@ def test_arclength_with_friction_agrees_with_load_stepping():
     assert all(st.contact.uzawa_converged for st in b.steps[1:])
 
 
+@pytest.mark.slow
+def test_arclength_with_friction_on_the_plectoneme_agrees_then_refuses_the_turn_back():
+    """Plectoneme-friction scene (16 elements, 1.5 turns, gamma_T = 0.3):
+    up to the limit point of the twisted rod the continuation and load
+    stepping give the same states; at the limit point (the loading snaps
+    into a loop there) the continuation stops with the message instead of
+    following the unstable branch back, where friction would dissipate along
+    a process no loading performs.  Frictionless, it passes the limit point."""
+    tw = load_demo("twisted_rod")
+
+    def build(gamma_T):
+        rod = tw.build(5.0, 16, 0.1, 1.5, 0.01, 0.01)
+        rod.contact.gamma_T = gamma_T
+        return rod
+
+    b = build(0.3).solve(6, method="arclength", max_steps=40)
+    assert not b.converged
+    assert "limit point" in b.message and "snap='relax'" in b.message
+    lam_b = np.array([st.load_factor for st in b.steps])
+    assert np.all(np.diff(lam_b) > 0)           # nothing recorded past the turn
+    assert 0.6 < lam_b[-1] < 0.75               # the limit point (0.716 turns x 1.5)
+    # load stepping through the continuation's first load factors
+    a = build(0.3).solve(3, path=lam_b[:4])
+    assert a.converged and len(a.steps) == 4
+    for k in range(1, 4):
+        assert a.steps[k].load_factor == pytest.approx(lam_b[k], abs=1e-12)
+        np.testing.assert_allclose(a.steps[k].r, b.steps[k].r, atol=1e-8 * 5.0)
+        np.testing.assert_allclose(a.steps[k].R, b.steps[k].R, atol=1e-8)
+    c = build(0.0).solve(6, method="arclength", max_steps=24)
+    lam_c = np.array([st.load_factor for st in c.steps])
+    assert np.any(np.diff(lam_c) < 0)           # frictionless: on along the turned path
+
+
 def _hairpin_rod(n=24):
     sec = Section.circle(E=1e7, nu=0.3, radius=0.01)
     x = np.linspace(0.6, 0.0, 40, endpoint=False)
