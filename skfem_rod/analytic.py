@@ -33,6 +33,7 @@ __all__ = [
     "Rollup", "rollup",
     "CantileverSolution", "elastica_cantilever", "elastica_tip_elliptic",
     "greenhill_critical_moment", "twist_torque", "clamped_rod_shooting",
+    "LocalizedWrithing", "localized_writhing",
 ]
 
 
@@ -381,6 +382,107 @@ def twist_torque(GJ, angle, length):
     True
     """
     return GJ * angle / length
+
+
+# --------------------------------------------------------------------------
+# localized writhing of a clamped rod (the localizing helix)
+# --------------------------------------------------------------------------
+@dataclass
+class LocalizedWrithing:
+    """The localized writhing solution of :func:`localized_writhing`.
+
+    Attributes
+    ----------
+    moment, tension : the end twisting moment ``M`` and the end tension
+        ``T`` (forces and moments, not the dimensionless ``m, tau``).
+    m, tau : ``M L / B`` and ``T L^2 / B``.
+    c : ``m / (2 sqrt(tau)) = cos(theta_max / 2)``.
+    theta_max : largest angle between the tangent and the axis (rad).
+    position : callable ``s -> (n, 3)`` centreline of the localizing
+        helix, ``0 <= s <= L``, axis along ``+z`` from the origin (the
+        infinite-rod solution; at the ends it is straight to the relative
+        accuracy ``exp(-pi sqrt(4 t - m_z^2) / 2)``, 2e-5 for the case of
+        PyElastica's example).
+    """
+    moment: float
+    tension: float
+    m: float
+    tau: float
+    c: float
+    theta_max: float
+    position: object = field(repr=False)
+
+
+def localized_writhing(B, C, length, shortening, rotation):
+    r"""Localized writhing of a straight rod clamped at both ends, its ends
+    brought together by ``shortening`` along the axis and turned relative
+    to each other by ``rotation`` (rad) about it; inextensible, unshearable,
+    isotropic bending stiffness ``B``, torsional stiffness ``C``.
+
+    The equilibrium is the localizing helix of the infinite rod (van der
+    Heijden, Neukirch, Goss & Thompson, Int. J. Mech. Sci. 45 (2003)
+    161-196, their (27) and (52)); the end conditions give, with ``m = M
+    L / B``, ``tau = T L^2 / B``, ``gamma = C / B`` (van der Heijden,
+    Champneys & Thompson, "Writhing instabilities of twisted rods: from
+    infinite to finite length", 2001, (13)-(15)),
+
+    .. math::
+
+        \frac{D}{L} = \sqrt{\frac{16}{\tau}\Big(1 - \frac{m^2}{4\tau}\Big)},
+        \qquad R = \frac{m}{\gamma} + 4 \arccos\frac{m}{2\sqrt{\tau}},
+        \qquad \cos\theta_{max} = \frac{m^2}{2\tau} - 1,
+
+    the rotation absorbed by twist ``m / gamma = M L / C`` and by writhe
+    ``4 arccos(...)``.  These are the relations PyElastica's helical
+    buckling example is checked against (Gazzola et al., R. Soc. open sci.
+    2018, 3.4.1).
+
+    Examples
+    --------
+    >>> w = localized_writhing(1.345, 0.789, 100.0, 3.0, 27 * 2 * np.pi)
+    >>> round(w.m, 4), round(w.tau, 2), round(w.theta_max, 4)
+    (98.5415, 2900.99, 0.8317)
+    """
+    B, C, L, D, Rot = (float(v) for v in (B, C, length, shortening, rotation))
+    for name, v in (("B", B), ("C", C), ("length", L), ("shortening", D),
+                    ("rotation", Rot)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    gamma = C / B
+    d = D / L
+    # with c = m / (2 sqrt(tau)) = cos(theta_max / 2): tau = 16 (1 - c^2) / d^2
+    # and m = 8 c sqrt(1 - c^2) / d, so R(c) = m / gamma + 4 arccos(c) is one
+    # equation in c; on 1/sqrt(2) < c < 1 (theta_max < 90 degrees) it falls
+    # monotonically from 4 / (gamma d) + pi to 0: one root there.
+    def rotation_of(c):
+        return 8.0 * c * np.sqrt(1.0 - c * c) / (gamma * d) + 4.0 * np.arccos(c)
+
+    lo, hi = 1.0 / np.sqrt(2.0), 1.0
+    if not Rot < rotation_of(lo):
+        raise ValueError(f"rotation={Rot!r} is beyond the localized writhing branch for "
+                         f"shortening={D!r} (at most 4 B L / (C D) + pi = "
+                         f"{rotation_of(lo):.6g} rad)")
+    c = brentq(lambda c: rotation_of(c) - Rot, lo, hi, xtol=1e-15, rtol=1e-15)
+    tau = 16.0 * (1.0 - c * c) / d ** 2
+    m = 8.0 * c * np.sqrt(1.0 - c * c) / d
+    m, tau, c = float(m), float(tau), float(c)
+    M, T = m * B / L, tau * B / L ** 2
+    theta_max = float(np.arccos(np.clip(m * m / (2.0 * tau) - 1.0, -1.0, 1.0)))
+    t = tau / (4.0 * np.pi ** 2)
+    mz = m / (2.0 * np.pi)
+    root = np.sqrt(4.0 * t - mz * mz)
+
+    def position(s):
+        u = np.asarray(s, dtype=float) / L - 0.5          # -1/2 .. 1/2
+        a = root / (2.0 * np.pi * t)
+        x = a * np.sin(mz * np.pi * u) / np.cosh(np.pi * u * root)
+        y = -a * np.cos(mz * np.pi * u) / np.cosh(np.pi * u * root)
+        z = u - a * np.tanh(np.pi * u * root)
+        z0 = -0.5 + a * np.tanh(0.5 * np.pi * root)           # z at s = 0
+        return np.stack([x, y, z - z0], axis=-1) * L
+
+    return LocalizedWrithing(moment=M, tension=T, m=m, tau=tau, c=c, theta_max=theta_max,
+                             position=position)
 
 
 # --------------------------------------------------------------------------

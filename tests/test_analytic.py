@@ -211,3 +211,47 @@ def test_greenhill_and_twist():
 def test_docstring_examples():
     res = doctest.testmod(analytic, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert res.attempted > 0 and res.failed == 0
+
+
+# -- localized writhing (the localizing helix of a clamped rod) ----------------
+def test_localized_writhing_relations_and_curve():
+    """PyElastica's helical buckling case (B = 1.345, C = 0.789, L = 100,
+    slack 3, 27 turns): the end conditions solved for (m, tau) give the
+    values its authors obtained with a different solver (vpasolve of the same
+    two equations: m = 98.541496171190744, tau = 2900.993205792131), and the
+    centreline of the localizing helix is consistent with them: arclength
+    parametrized (length L), ends on the axis at the slack, largest tangent
+    angle theta_max, and writhe 2 arccos(c) / pi turns (the rotation not
+    taken up by twist, Calugareanu-White), computed here from the curve by
+    the exact polygon Gauss integral of skfem_rod.topology."""
+    from skfem_rod.analytic import localized_writhing
+    from skfem_rod.topology import closure, writhe
+    L, D, R = 100.0, 3.0, 27 * 2 * np.pi
+    w = localized_writhing(1.345, 0.789, L, D, R)
+    assert w.m == pytest.approx(98.541496171190744, rel=1e-12)
+    assert w.tau == pytest.approx(2.900993205792131e3, rel=1e-12)
+    s = np.linspace(0.0, L, 40001)
+    p = w.position(s)
+    seg = np.diff(p, axis=0)
+    assert np.linalg.norm(seg, axis=1).sum() == pytest.approx(L, rel=1e-8)
+    np.testing.assert_allclose(p[-1] - p[0], [0, 0, L - D], atol=1e-4)   # exp(-10.9) ends
+    t = seg / np.linalg.norm(seg, axis=1)[:, None]
+    assert np.arccos(t[:, 2].min()) == pytest.approx(w.theta_max, rel=1e-6)
+    # twist share + writhe share = the applied turns
+    assert w.m / (0.789 / 1.345) + 4 * np.arccos(w.c) == pytest.approx(R, rel=1e-13)
+    pts = p[::20]
+    d1 = np.cross(np.gradient(pts, axis=0), [1.0, 0.0, 0.0])
+    d1 /= np.linalg.norm(d1, axis=1)[:, None]
+    c = closure(pts, d1)
+    assert writhe(c.points, closed=True) == pytest.approx(2 * np.arccos(w.c) / np.pi,
+                                                          abs=2e-4)
+
+
+@pytest.mark.parametrize("kw, name", [(dict(B=-1.0), "B"), (dict(shortening=0.0), "shortening"),
+                                      (dict(rotation=np.inf), "rotation")])
+def test_localized_writhing_refuses_bad_input(kw, name):
+    from skfem_rod.analytic import localized_writhing
+    args = dict(B=1.345, C=0.789, length=100.0, shortening=3.0, rotation=27 * 2 * np.pi)
+    args.update(kw)
+    with pytest.raises(ValueError, match=name):
+        localized_writhing(**args)

@@ -1,0 +1,136 @@
+"""Localized writhing of a clamped rod (PyElastica's helical buckling case,
+Gazzola et al., R. Soc. open sci. 2018, 3.4.1), against the localizing
+helix (:func:`skfem_rod.analytic.localized_writhing`).
+
+Set-up: ``L = 100``, isotropic bending stiffness ``B = 1.345``, torsional
+stiffness ``C = 0.789``, ``EA = GA = 1e5``; both ends clamped; the end
+``s = L`` moves toward the start by the slack ``D = 3`` and turns by 27
+turns about the axis, both in proportion to the load factor.  A perfect rod
+stays on the (unstable) straight branch, so a small transverse dead force
+at mid-length (``--imperfection`` times ``B / L^2``, constant) picks the
+buckled branch.
+
+At load factor 1 the solution is compared with the relations of the
+localizing helix: the end tension ``T = tau B / L^2``, the end twisting
+moment ``M = m B / L``, the largest tangent angle ``theta_max`` and the
+share of the 27 turns taken up by twist (``m / gamma / 2 pi``) and by
+writhe (``2 arccos(c) / pi``).  The analytic solution is that of the
+inextensible, unshearable infinite rod; for this case it is straight at
+the ends to 2e-5, and ``EA = 1e5`` stretches the rod by 4e-6 under ``T``.
+
+    python benchmarks/bench_writhing.py [--elements 128] [--steps 54]
+        [--imperfection 1e-3] [--option dynamics=true ...] [--out DIR]
+
+prints the figures and the solver's counts (steps, Newton iterations, cut
+steps, damped or flow steps, wall time); with ``--results`` appends them to
+benchmarks/RESULTS_writhing.md with the command line.
+"""
+import argparse
+import datetime
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from skfem_rod import Rod, Section, geometry
+from skfem_rod.analytic import localized_writhing
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from bench_statics import machine_info  # noqa: E402
+
+L, B, C, EA = 100.0, 1.345, 0.789, 1e5
+SLACK, TURNS = 3.0, 27.0
+
+
+def build(n_elements=128, imperfection=1e-3, slack=SLACK, turns=TURNS):
+    """The clamped rod of the case, along ``+x``; the end turns about ``+x``
+    and moves by ``-slack`` along it; a constant transverse dead force
+    ``imperfection * B / L^2`` along ``+y`` at mid-length."""
+    sec = Section(EA=EA, GA1=EA, GA2=EA, EI1=B, EI2=B, GJ=C, radius=0.35)
+    rod = Rod(geometry.straight(L), sec, n_elements)
+    rod.clamp("start")
+    rod.prescribe_displacement("end", [-slack, 0.0, 0.0])
+    rod.prescribe_rotation("end", [2 * np.pi * turns, 0.0, 0.0])
+    if imperfection:
+        rod.add_force(L / 2, [0.0, imperfection * B / L ** 2, 0.0], constant=True)
+    return rod
+
+
+def measure(result, step=-1, per_element=16):
+    """End tension and twisting moment, largest tangent angle to the axis,
+    twist and writhe (turns) of ``result.steps[step]``."""
+    force, moment = result.reaction("end", step)
+    f = result.sample(per_element, step)
+    t = np.einsum("nij,nj->ni", f["R"], f["v"])          # r' = R v
+    t = t / np.linalg.norm(t, axis=1)[:, None]
+    top = result.topology(step, per_element=per_element)
+    return dict(tension=float(force[0]), moment=float(moment[0]),
+                theta_max=float(np.arccos(np.clip(t[:, 0], -1.0, 1.0)).max()),
+                twist=float(top.twist), writhe=float(top.writhe), link=float(top.link))
+
+
+def reference(slack=SLACK, turns=TURNS):
+    w = localized_writhing(B, C, L, slack, 2 * np.pi * turns)
+    gamma = C / B
+    return dict(tension=w.tension, moment=w.moment, theta_max=w.theta_max,
+                twist=w.m / gamma / (2 * np.pi), writhe=2 * np.arccos(w.c) / np.pi,
+                link=turns)
+
+
+def run(n_elements, n_steps, imperfection, options):
+    rod = build(n_elements, imperfection)
+    t0 = time.perf_counter()
+    res = rod.solve(n_steps, **options)
+    wall = time.perf_counter() - t0
+    out = dict(elements=n_elements, steps=n_steps, options=options,
+               imperfection=imperfection, converged=bool(res.converged),
+               message=res.message, wall_s=wall,
+               load_factor=float(res.steps[-1].load_factor),
+               recorded_steps=len(res.steps),
+               newton=int(sum(st.iterations for st in res.steps)))
+    if res.converged:
+        out["fe"] = measure(res)
+        out["ref"] = reference()
+        out["rel_error"] = {k: abs(out["fe"][k] - out["ref"][k]) / abs(out["ref"][k])
+                            for k in out["ref"]}
+    return res, out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--elements", type=int, default=128)
+    ap.add_argument("--steps", type=int, default=108,
+                    help="load steps (27 turns: at least 108 with max_rotation_step pi/2)")
+    ap.add_argument("--imperfection", type=float, default=1e-3)
+    ap.add_argument("--option", action="append", default=[],
+                    help="solver option name=value (JSON value), repeatable")
+    ap.add_argument("--results", action="store_true",
+                    help="append to benchmarks/RESULTS_writhing.md")
+    a = ap.parse_args(argv)
+    options = {}
+    for kv in a.option:
+        k, _, v = kv.partition("=")
+        options[k] = json.loads(v)
+    res, out = run(a.elements, a.steps, a.imperfection, options)
+    print(json.dumps({k: v for k, v in out.items()}, indent=1, default=str))
+    if a.results:
+        lines = [f"\n## {datetime.date.today()} `python benchmarks/bench_writhing.py "
+                 + " ".join(argv if argv is not None else sys.argv[1:]) + "`\n",
+                 f"{machine_info()}\n",
+                 f"converged: {out['converged']} ({out['message']}); load factor "
+                 f"{out['load_factor']:.4g}; {out['recorded_steps']} steps, "
+                 f"{out['newton']} Newton iterations, {out['wall_s']:.1f} s\n"]
+        if res.converged:
+            lines.append("\n| quantity | FE | localizing helix | rel. error |\n|---|---|---|---|\n")
+            for k in out["ref"]:
+                lines.append(f"| {k} | {out['fe'][k]:.6g} | {out['ref'][k]:.6g} | "
+                             f"{out['rel_error'][k]:.2e} |\n")
+        with open(HERE / "RESULTS_writhing.md", "a") as fh:
+            fh.writelines(lines)
+
+
+if __name__ == "__main__":
+    main()
