@@ -52,6 +52,11 @@ class Report:
     uzawa_converged: bool = True
     uzawa_note: str = ""
     friction_moved: float = 0.0
+    # generalized Newton (skfem_rod.nonsmooth): |C| per iteration and the
+    # iteration from which the multipliers were held
+    complementarity: list = None
+    polished_from: int = None
+    step_lengths: list = None
     penalty_scale: float = 1.0
     # load stepping and gradient flow
     flow_steps: int = 0
@@ -170,10 +175,18 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         basis), or None.
     border : :class:`Border` (continuation), or None (``lam`` fixed).
 
+    With contact on and ``opts.contact_solve == "newton"`` (no ``border``,
+    no viscous term) the generalized Newton of :mod:`skfem_rod.nonsmooth`
+    solves for the normal multipliers too.
+
     Returns
     -------
     ``(r, R, lam, report)`` with a :class:`Report`; ``report.converged``.
     """
+    if (problem.contact is not None and opts.contact_solve == "newton" and border is None
+            and problem.viscous is None):
+        from .nonsmooth import contact_newton
+        return contact_newton(problem, r, R, lam, opts, prescribed)
     fixed = problem.fixed
     n = problem.mesh.n_dofs
     remaining = np.zeros(n) if prescribed is None else prescribed.copy()

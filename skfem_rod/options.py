@@ -127,6 +127,13 @@ class SolverOptions:
         (default true; :func:`skfem_rod.newton.position_correction`): the
         roll-up of a slender rod by pi/2 per step takes 3-4 iterations per
         step instead of 23.
+    contact_solve : with contact on, ``"uzawa"`` (the paper's iteration:
+        multipliers updated after each converged Newton solve,
+        :mod:`skfem_rod.augmented`) or ``"newton"`` (generalized Newton on
+        the Alart-Curnier augmented Lagrangian, the normal multipliers
+        unknowns beside the dofs, merit line search; the friction
+        multipliers are still updated between Newton solves:
+        :mod:`skfem_rod.nonsmooth`, docs/contact-solve.md).
     """
     rtol: float = _pos(1e-10, "residual tolerance on the free dofs (relative to the loads "
                               "on them and the forces the supports take up)")
@@ -166,6 +173,12 @@ class SolverOptions:
     position_correction: bool = _opt(True, "boolean", "after a Newton update that raised the "
                                                       "residual 10x, one Newton step on the "
                                                       "positions with the rotations held")
+    contact_solve: str = _opt("uzawa", "choice", "contact solve: Uzawa updates of the "
+                                                 "multipliers between Newton solves (the "
+                                                 "paper), or a generalized Newton on the "
+                                                 "normal multipliers too "
+                                                 "(skfem_rod.nonsmooth)",
+                              choices=("uzawa", "newton"))
 
     def __post_init__(self):
         for f in fields(self):

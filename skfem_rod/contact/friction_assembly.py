@@ -115,6 +115,12 @@ class FrictionOutput:
     multiplier_T: np.ndarray = None   # (m, 3) Uzawa update at the last converged state
     multiplier_R: np.ndarray = None   # (m, 3)
     axis: np.ndarray = None           # (m, 3) t, the master tangent
+    #: ``(dofs, values)`` ``(m, 48)``: the derivative of the friction
+    #: residual with respect to each pair's normal force ``f_N`` (through
+    #: the Coulomb radius), spatial basis; with ``tangent`` only.  The
+    #: nonsmooth Newton (:mod:`skfem_rod.nonsmooth`) couples it to the
+    #: normal multipliers (``d f_N / d lambda_N = 1`` where active).
+    dresidual_dfN: tuple = None
 
 
 class _Forces(NamedTuple):
@@ -199,6 +205,13 @@ def _residual(n, kin, w, F, couple):
     """``w F . [delta x - delta y - rho (delta th_s + delta th_m) x N]``:
     on the slave nodes ``N_s (F; -rho q)``, on the master's
     ``N_m (-F; -rho q)``, ``q = N x F``."""
+    dofs, loc = _local(kin, w, F, couple)
+    return np.bincount(dofs.ravel(), weights=loc.ravel(), minlength=n)
+
+
+def _local(kin, w, F, couple):
+    """The pairs' residual entries ``(dofs, values)``, each ``(m, 8, 6)``
+    (linear in ``F`` and ``couple``: :func:`_residual`)."""
     m = w.size
     wF = w[:, None] * F
     wq = (w * kin.rho)[:, None] * np.cross(kin.N, F)
@@ -209,7 +222,17 @@ def _residual(n, kin, w, F, couple):
     loc[:, :4, 3:] = kin.Ns[:, :, None] * (wc - wq)[:, None, :]
     loc[:, 4:, 3:] = kin.Nm[:, :, None] * (-wc - wq)[:, None, :]
     dofs = 6 * kin.nodes[:, :, None] + np.arange(6)
-    return np.bincount(dofs.ravel(), weights=loc.ravel(), minlength=n)
+    return dofs, loc
+
+
+def _dforces_dfN(kin, fo, p):
+    """``dF / df_N`` and ``d couple / df_N`` per pair (the Coulomb radius
+    ``mu gamma f_N`` of both laws; zero in stick)."""
+    dT, dR = fo.resT.dforce_dnormal, fo.resR.dforce_dnormal
+    if p.rotational == "circumferential":
+        t = kin.t
+        return dT + (np.sum(t * dR, axis=1) / kin.rho)[:, None] * kin.b, np.zeros_like(dT)
+    return dT, dR
 
 
 def _core(kin, w, F, DF, couple, Dcouple):
@@ -387,6 +410,8 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
                          back(fo.fT), back(fo.fR), kin.t)
     if not tangent:
         return force, None, out
+    dofs, loc = _local(kin, w, *_dforces_dfN(kin, fo, p))
+    out.dresidual_dfN = (dofs.reshape(idx.size, 48), loc.reshape(idx.size, 48))
     C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
     K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal)
     return force, K, out

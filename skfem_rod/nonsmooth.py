@@ -1,0 +1,346 @@
+r"""Generalized (semi-smooth) Newton on the Alart-Curnier augmented
+Lagrangian of normal contact: the normal multipliers are unknowns beside
+the rod's dofs and move at every Newton iteration, with the generalized
+Jacobian of the projection ``[.]_+``.  Selected by
+``SolverOptions.contact_solve = "newton"``; the paper's Uzawa loop
+(:mod:`skfem_rod.augmented`) is ``"uzawa"`` and stays around this solve:
+it updates the friction multipliers between Newton solves (Uzawa, the
+paper's eq. 4.2b-c) and takes over if a solve ends short of the contact
+tolerances.  docs/contact-solve.md has the derivation and the measurements.
+
+Unknowns ``(y, lambda_N)``, ``lambda_N`` one per slave point (a force per
+unit length).  Residuals (``w`` the slave's weight, ``f_N`` the
+augmented-Lagrangian force of eq. 4.2a, ``f_N = [d + mu lambda_N]_+ / mu``)::
+
+    G(y, lambda)   = internal - external + contact(f_N) + friction(f_N)
+    C_i(y, lambda) = w_i (f_N,i - lambda_i)
+
+``C_i = 0`` is the Alart-Curnier complementarity function: where
+``d + mu lambda > 0`` (active) it is ``w d / mu`` (the gap closes), elsewhere
+``-w lambda`` (no force).  Its generalized Jacobian::
+
+    active:   dC/dy = -(w / mu) dl (dl: derivative of the distance), dC/dlambda = 0
+    inactive: dC/dy = 0,                                              dC/dlambda = -w
+    dG/dlambda = -w dl (+ the friction's d/df_N through the Coulomb radius) where active
+
+and ``dG/dy`` is the penalty tangent at the current multipliers
+(:mod:`skfem_rod.contact.assembly`): one sparse system of size
+``n_dofs + n_slaves`` per iteration.  Every contact is seen from both
+sides (both strands' Gauss points are slaves), so the active rows are
+nearly dependent and the exact Jacobian is singular: the active rows get
+``dC/dlambda = -REGULARIZATION w`` (the residual stays exact).
+
+In plain sight::
+
+    evaluate G, C and the generalized Jacobian at (y, lambda)
+    repeat:
+        converged when |G_free| <= rtol * force scale (or the update is
+            below increment_tol) and the contact tolerances hold (the
+            penetration and the open gap under force, as the Uzawa loop's)
+        polish: once the tolerances hold and |G_free| <= POLISH_BELOW *
+            force scale, the multipliers are held and Newton finishes on G
+        solve [[K, dG/dl], [dC/dy, dC/dl]] (dy, dl) = -(G, C)
+        line search on the merit |(G_free, C)| (|G_free| when polishing):
+            alpha = 1 (spin cap), halved until Armijo's decrease holds; in
+            the first two iterations the largest trial below max_growth
+            times the merit (plain Newton's safeguard); at most ESCAPES
+            times a solve the same against the merit (a kink of C)
+        y <- y (+) alpha dy,  lambda <- lambda + alpha dl
+"""
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from .contact.law import gap
+from .kinematics import ElementRotationError
+from .newton import CORRECT_ABOVE, position_correction
+from .problem import clearance_ok
+
+#: Armijo's sufficient decrease of the merit |(G, C)| per unit step
+ARMIJO = 1e-4
+#: the active rows' ``dC/dlambda`` is ``-REGULARIZATION w`` instead of 0:
+#: both slave passes see a contact (each side's Gauss points are slaves),
+#: so the active constraints are nearly dependent (50 active rows of rank
+#: about 25 in the rotational-friction scene) and the exact generalized
+#: Jacobian is singular; the residual stays exact, so the converged state
+#: is the exact one, the rate in the multipliers is linear with about this
+#: factor
+REGULARIZATION = 1e-3
+#: the multipliers are held (Newton polishes at them) once the contact
+#: tolerances hold and ``|G_free|`` is below this times the force scale
+POLISH_BELOW = 1e-4
+#: steps a solve may take against the merit (see contact_newton)
+ESCAPES = 2
+#: iterates whose largest merit the line search compares with (1: monotone)
+MEMORY = 1
+
+
+class ContactState:
+    """Residuals and the generalized Jacobian's contact blocks at an
+    evaluation (:func:`contact_blocks`)."""
+
+    def __init__(self, G, C, K_ly, K_yl, D, active, penetration, opened, merit):
+        self.G, self.C = G, C
+        self.K_ly, self.K_yl, self.D = K_ly, K_yl, D
+        self.active, self.penetration, self.opened, self.merit = \
+            active, penetration, opened, merit
+
+
+def contact_blocks(problem, ev, jacobian=True, weight=1.0):
+    """The complementarity residual ``C`` and the blocks ``dC/dy``,
+    ``dG/dlambda`` (in the dof basis), ``dC/dlambda`` (diagonal) at the
+    evaluation ``ev`` of ``problem`` (multipliers: ``problem.multipliers``);
+    the merit is ``|(G_free, weight C)|`` (weight 0 when polishing)."""
+    c, m = problem.contact, problem.multipliers
+    ns = m.normal.size
+    n = problem.mesh.n_dofs
+    w_all = problem.slaves.w.ravel()
+    ce = ev.contact
+    pairs = ce.pairs
+    lam = m.normal
+    fN = np.zeros(ns)
+    fN[pairs.slave] = ce.fN
+    C = w_all * (fN - lam)
+    d = gap(pairs.distance, c.radius)
+    mu = c.penalty / m.penalty_scale[pairs.slave]
+    act = (d + mu * lam[pairs.slave]) > 0
+    active = np.zeros(ns, bool)
+    active[pairs.slave[act]] = True
+    pen = float(d.max(initial=0.0))
+    opened = float(np.max(-d[ce.fN > 0], initial=0.0))
+    G = ev.residual
+    # C in units of G's tolerance: w tol / mu per point (the gap tolerance
+    # of the Uzawa loop as a force) against rtol times the force scale
+    Cw = weight * C
+    merit = float(np.sqrt(problem.residual_norm(ev) ** 2 + np.dot(Cw, Cw)))
+    if not jacobian:
+        return ContactState(G, C, None, None, None, active, pen, opened, merit)
+    # dl = delta l over the 24 position dofs of the pair (assembly.py)
+    from .element import shape_functions
+    k = np.flatnonzero(act)
+    Ns, _, _ = shape_functions(pairs.s_xi[k])
+    Nm, _, _ = shape_functions(pairs.m_xi[k])
+    P = np.concatenate([Ns.T, -Nm.T], axis=1)                       # (a, 8)
+    b = (P[:, :, None] * pairs.normal[k][:, None, :]).reshape(k.size, 24)
+    nodes = np.concatenate([problem.mesh.nodes[pairs.s_elem[k]],
+                            problem.mesh.nodes[pairs.m_elem[k]]], axis=1)
+    dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(k.size, 24)
+    sl = pairs.slave[k]
+    w = pairs.weight[k]
+    cols = np.repeat(sl, 24)
+    K_yl = sp.coo_matrix(((-w[:, None] * b).ravel(), (dofs.ravel(), cols)), shape=(n, ns))
+    K_ly = sp.coo_matrix(((-(w / mu[k])[:, None] * b).ravel(), (cols, dofs.ravel())),
+                         shape=(ns, n))
+    fr = ce.friction
+    if fr is not None and fr.dresidual_dfN is not None and fr.index.size:
+        # friction pairs are the pairs with f_N > 0 (all active)
+        fd, fv = fr.dresidual_dfN
+        K_yl = K_yl + sp.coo_matrix((fv.ravel(), (fd.ravel(), np.repeat(fr.slave, 48))),
+                                    shape=(n, ns))
+    K_yl, K_ly = K_yl.tocsc(), K_ly.tocsr()
+    if problem.T is not None:
+        K_yl = problem.T.T @ K_yl
+        K_ly = K_ly @ problem.T
+    D = np.where(active, -REGULARIZATION * w_all, -w_all)
+    return ContactState(G, C, K_ly, K_yl, D, active, pen, opened, merit)
+
+
+def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
+    """The generalized Newton update ``(dy, dlambda)`` (``dy`` takes the
+    prescribed ``remaining`` on the supported dofs); ``dlambda = 0`` and
+    plain Newton on ``G`` with ``fixed_multipliers``."""
+    n = problem.mesh.n_dofs
+    if fixed_multipliers:
+        dy = problem.factor(ev.tangent)(-cs.G - ev.tangent @ remaining)
+        dy[problem.fixed] = remaining[problem.fixed]
+        return dy, np.zeros_like(cs.C)
+    fixed = problem.fixed
+    K = ev.tangent.tocsc(copy=True)
+    cols = np.repeat(np.arange(n), np.diff(K.indptr))
+    rows = K.indices
+    kill = fixed[rows] | fixed[cols]
+    K.data[kill] = 0.0
+    K.data[kill & (rows == cols)] = 1.0
+    K_yl = cs.K_yl.tocsr(copy=True)
+    K_yl = sp.diags(np.where(fixed, 0.0, 1.0)) @ K_yl
+    K_ly = cs.K_ly.tocsc(copy=True) @ sp.diags(np.where(fixed, 0.0, 1.0))
+    A = sp.bmat([[K, K_yl], [K_ly, sp.diags(cs.D)]], format="csc")
+    rhs_y = -cs.G - ev.tangent @ remaining
+    rhs_y[fixed] = 0.0
+    rhs_l = -cs.C - cs.K_ly @ remaining
+    t0 = time.perf_counter()
+    # the band ordering of Problem.factor (contact couples distant stretches
+    # of the rod); SuperLU's partial pivoting takes the zero diagonal of
+    # the active rows
+    p = reverse_cuthill_mckee(A.tocsr(), symmetric_mode=False)
+    lu = spla.splu(A[p][:, p].tocsc(), permc_spec="NATURAL")
+    problem.timers["factorization"] += time.perf_counter() - t0
+    problem.calls["factor"] += 1
+    x = np.empty(A.shape[0])
+    x[p] = lu.solve(np.concatenate([rhs_y, rhs_l])[p])
+    dy = x[:n]
+    dy[fixed] = remaining[fixed]
+    return dy, x[n:]
+
+
+def _fail(r, R, lam, history, it, reason, ev=None):
+    from .newton import Report
+    return r, R, lam, Report(False, iterations=it, history=history, reason=reason,
+                             evaluation=ev)
+
+
+def contact_newton(problem, r, R, lam, opts, prescribed=None):
+    """Generalized Newton on ``(y, lambda_N)`` at load factor ``lam`` from
+    ``(r, R)`` and the multipliers in ``problem.multipliers`` (updated in
+    place).  Same call and return as :func:`skfem_rod.newton.newton`
+    (without continuation); ``report.history`` holds ``|G_free|`` per
+    iteration (as plain Newton's), ``report.complementarity`` ``|C|`` and
+    ``report.polished_from`` the iteration from which the multipliers were
+    held (the contact tolerances met; None if never), ``report.step_lengths``
+    the line search's ``alpha`` per iteration."""
+    from .newton import Report
+    c, m = problem.contact, problem.multipliers
+    n = problem.mesh.n_dofs
+    remaining = np.zeros(n) if prescribed is None else prescribed.copy()
+    history, complementarity, alphas = [], [], []
+    length = problem.rod.length
+    tol = c.tolerance * c.radius
+    last_update = np.inf
+    polish = polished = False
+    polished_from = None
+    escapes = 0
+    merits = []
+    try:
+        ev = problem.evaluate(r, R, lam)
+    except ElementRotationError as err:
+        return _fail(r, R, lam, history, 0, str(err))
+    for it in range(opts.max_iterations + 1):
+        scale = problem.force_scale(ev)
+        if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
+            return _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
+        weight = 0.0 if polish else 1.0
+        cs = contact_blocks(problem, ev, weight=weight)
+        rn = problem.residual_norm(ev)
+        history.append(rn)
+        complementarity.append(float(np.linalg.norm(cs.C)))
+        merits.append(cs.merit)
+        tolerances = cs.penetration <= tol and cs.opened <= tol
+        if not np.any(remaining) and (tolerances or polish) and (
+                rn <= opts.rtol * scale or last_update <= opts.increment_tol):
+            rep = Report(True, iterations=it, history=history, evaluation=ev)
+            rep.complementarity, rep.polished_from = complementarity, polished_from
+            rep.step_lengths = alphas
+            return r, R, lam, rep
+        if it == opts.max_iterations:
+            break
+        # the contact tolerances hold: the multipliers are kept, Newton
+        # polishes the equilibrium at them (the Uzawa loop's last pass)
+        polish = polish or (tolerances and not np.any(remaining)
+                            and rn <= POLISH_BELOW * scale)
+        if polish:
+            weight = 0.0
+        try:
+            dy, dl = solve_step(problem, ev, cs, remaining, polish)
+        except RuntimeError as err:
+            return _fail(r, R, lam, history, it, f"singular generalized Jacobian ({err})", ev)
+        if not (np.all(np.isfinite(dy)) and np.all(np.isfinite(dl))):
+            return _fail(r, R, lam, history, it, "non-finite Newton update", ev)
+        if polish and not polished:
+            merits, polished, polished_from = [rn], True, it
+        reference = max(merits[-MEMORY:])
+        first = it < 2 or bool(np.any(remaining))
+        accepted, alpha, why = line_search(problem, r, R, lam, dy, dl, merits[-1], reference,
+                                           scale, opts, first, weight)
+        if accepted is None and escapes < ESCAPES:
+            # a kink of C between the iterate and every trial (a contact
+            # that must open seen from its active branch): take the largest
+            # admissible trial, at most ESCAPES times a solve (so no cycle)
+            accepted, alpha, why = line_search(problem, r, R, lam, dy, dl, merits[-1],
+                                               reference, scale, opts, True, weight)
+            escapes += 1
+        if accepted is None and tolerances and not polish and not np.any(remaining):
+            # the merit cannot fall below the mismatch of the two slave
+            # passes' gaps: hold the multipliers, polish G
+            polish = True
+            continue
+        if accepted is None:
+            return _fail(r, R, lam, history, it + 1,
+                         f"no admissible update after {opts.max_backtracks} halvings: {why}",
+                         ev)
+        r, R, ev, lam_N = accepted
+        m.normal = lam_N
+        alphas.append(alpha)
+        upd = (alpha * dy).reshape(-1, 6)
+        last_update = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max(),
+                                float(np.abs(alpha * dl).max(initial=0.0)) * c.penalty / length))
+        remaining = remaining * (1.0 - alpha)
+        remaining[np.abs(remaining) < 1e-300] = 0.0
+    return _fail(r, R, lam, history, opts.max_iterations,
+                 f"no convergence in {opts.max_iterations} iterations "
+                 f"(merit {history[-1]:.3e})", ev)
+
+
+def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first, weight):
+    """Backtracking on the merit ``|(G_free, weight C)|``; returns
+    ``((r, R, evaluation, lambda_N) or None, alpha, why)``.
+
+    Armijo's test against ``reference``, the largest merit of the last
+    :data:`MEMORY` iterates (``MEMORY = 1``: monotone; a memory of 4, the
+    non-monotone test of Grippo, Lampariello & Lucidi 1986, let the
+    rotational-friction scene 2-cycle 8.6e-3 <-> 4.3e-3 for 6 iterations at
+    a stick/slip switch, each return a hair below the memory's maximum).
+    A trial above :data:`CORRECT_ABOVE` times ``merit`` (the last one) gets
+    plain Newton's position correction first.  When no halving passes:
+    ``first`` (the step's first iterations, the prescribed motion being
+    applied) takes the largest trial whose merit is below ``max_growth``
+    times the reference (plain Newton's safeguard: a stiff rod's first
+    update can raise the residual, and the next one converges); otherwise
+    the lowest trial below the reference, else none.
+    """
+    m = problem.multipliers
+    lam0 = m.normal
+    alpha, why = 1.0, "the merit did not fall"
+    spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
+    if opts.line_search:
+        alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+    bound = opts.max_growth * max(reference, scale)
+    best = None
+    cap = opts.clearance_cap
+    for _ in range(opts.max_backtracks + 1):
+        lam_t = lam0 + alpha * dl
+        try:
+            r_t, R_t = problem.update(r, R, dy, alpha)
+            if cap and not clearance_ok(problem.rod, r, r_t):
+                why = "the update would carry a strand through another"
+                alpha *= 0.5
+                continue
+            m.normal = lam_t
+            ev_t = problem.evaluate(r_t, R_t, lam)
+            mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
+            if np.isfinite(mt) and opts.position_correction and mt > CORRECT_ABOVE * merit:
+                # as plain Newton (skfem_rod.newton.position_correction)
+                r_t, ev_t = position_correction(problem, r_t, R_t, lam, ev_t)
+                mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
+        except ElementRotationError as err:
+            why = str(err)
+            alpha *= 0.5
+            continue
+        finally:
+            m.normal = lam0
+        if not np.isfinite(mt):
+            why = "non-finite residual"
+        else:
+            trial = ((r_t, R_t, ev_t, lam_t), alpha, "")
+            if not opts.line_search or mt <= (1 - ARMIJO * alpha) * reference:
+                return trial
+            if first and mt <= bound:
+                return trial
+            if mt < reference and (best is None or mt < best[0]):
+                best = (mt, trial)
+        alpha *= 0.5
+    if best is not None:
+        return best[1]
+    return None, alpha, why

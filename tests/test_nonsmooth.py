@@ -1,0 +1,229 @@
+"""The generalized Newton on the Alart-Curnier augmented Lagrangian
+(skfem_rod.nonsmooth, ``contact_solve="newton"``): its generalized
+Jacobian against central differences on every branch (open, active;
+friction in stick and in slip, tangential and rotational), the same
+converged state as Uzawa on a frictionless load/unload path, quadratic
+convergence and no 2-cycles on the converged steps, Coulomb's law at every
+converged step with friction."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod
+from skfem_rod import nonsmooth
+from skfem_rod.contact import friction as law
+from skfem_rod.problem import Problem
+from skfem_rod.rotations import expm
+
+from helpers import coulomb_checks
+from test_contact import SEC, hairpin
+
+EPS = 0.105
+
+
+def _problem(seed, friction):
+    """A hairpin of thick strands (eps = 0.105, legs 0.2 apart) in a seeded
+    random state near contact, with multipliers that leave some slave
+    points open and some active, friction (``friction`` = "stick" or
+    "slip" coefficients, or None) measured from a nearby reference."""
+    rng = np.random.default_rng(seed)
+    rod = Rod(hairpin(EPS, 0.2, leg=1.0), SEC, 16)
+    rod.clamp("start")
+    kw = {}
+    if friction == "slip":
+        kw = dict(gamma_T=0.3, gamma_R=0.01, mu_T=1e-3, mu_R=1e-3)
+    elif friction == "stick":
+        kw = dict(gamma_T=5.0, gamma_R=2.0, mu_T=1e-1, mu_R=1e-1)
+    rod.enable_contact(radius=EPS, penalty=1e-3, **kw)
+    p = Problem(rod)
+    nn = rod.mesh.n_nodes
+    r_n = rod.r0 + 0.002 * rng.normal(size=(nn, 3))
+    R_n = expm(0.3 * rng.normal(size=(nn, 3))) @ rod.R0
+    r = r_n + 0.004 * rng.normal(size=(nn, 3))
+    R = expm(0.05 * rng.normal(size=(nn, 3))) @ R_n
+    m = p.multipliers
+    ns = m.normal.size
+    m.normal = 0.01 * np.abs(rng.normal(size=ns))
+    if friction:
+        p.reference = (r_n, R_n)
+        m.tangential = 0.005 * rng.normal(size=(ns, 3))
+        m.rotational = 0.002 * rng.normal(size=(ns, 3))
+    return rng, p, r, R
+
+
+def _residuals(p, r, R, lam_N):
+    saved = p.multipliers.normal
+    p.multipliers.normal = lam_N
+    try:
+        ev = p.evaluate(r, R, 0.0, tangent=False)
+        cs = nonsmooth.contact_blocks(p, ev, jacobian=False)
+    finally:
+        p.multipliers.normal = saved
+    return cs.G, cs.C
+
+
+@pytest.mark.parametrize("friction", [None, "stick", "slip"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_generalized_jacobian_matches_finite_differences(seed, friction):
+    """``[[K, dG/dlambda], [dC/dy, dC/dlambda]]`` times a random direction
+    equals the central difference of ``(G, C)`` (away from the kinks: the
+    generalized Jacobian is the classical one on each branch)."""
+    rng, p, r, R = _problem(seed, friction)
+    ev = p.evaluate(r, R, 0.0)
+    cs = nonsmooth.contact_blocks(p, ev)
+    ns = cs.C.size
+    # both branches of the normal law are present
+    assert 5 < cs.active.sum() < ns - 5
+    if friction:
+        fr = ev.contact.friction
+        want = law.SLIP if friction == "slip" else law.STICK
+        for state in (fr.state_T, fr.state_R):
+            assert (state == want).mean() > 0.5
+    dy = rng.normal(size=p.mesh.n_dofs)
+    dy.reshape(-1, 6)[:, 3:] *= 0.3
+    dl = 0.01 * rng.normal(size=ns)
+    h = 1e-7
+    plus = _residuals(p, *p.update(r, R, dy, h), p.multipliers.normal + h * dl)
+    minus = _residuals(p, *p.update(r, R, dy, -h), p.multipliers.normal - h * dl)
+    fd_G = (plus[0] - minus[0]) / (2 * h)
+    fd_C = (plus[1] - minus[1]) / (2 * h)
+    # the exact generalized Jacobian (no regularization of the active rows)
+    D = np.where(cs.active, 0.0, -p.slaves.w.ravel())
+    J_G = ev.tangent @ dy + cs.K_yl @ dl
+    J_C = cs.K_ly @ dy + D * dl
+    assert np.abs(fd_G - J_G).max() <= 1e-6 * np.abs(fd_G).max()
+    assert np.abs(fd_C - J_C).max() <= 1e-6 * np.abs(fd_C).max()
+    if friction:
+        # the friction's dependence on f_N (Coulomb radius) is in dG/dlambda
+        # (without it the difference would not match in slip); G is
+        # piecewise linear in lambda (f_N = d / mu + lambda where active, and
+        # the radius mu gamma f_N of the ball enters linearly in slip), so a
+        # larger step keeps round-off out
+        hl = 1e-2
+        fd_l = (_residuals(p, r, R, p.multipliers.normal + hl * dl)[0]
+                - _residuals(p, r, R, p.multipliers.normal - hl * dl)[0]) / (2 * hl)
+        assert np.abs(fd_l - cs.K_yl @ dl).max() <= 1e-6 * np.abs(fd_l).max()
+
+
+def _pressed(mode, n_steps=12, tolerance=1e-7):
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 40)
+    rod.clamp("start").add_force("end", [0, -0.6, 0]).enable_contact(tolerance=tolerance)
+    return rod, rod.solve(n_steps=n_steps, path=[0, 1, 0], contact_solve=mode)
+
+
+@pytest.fixture(scope="module")
+def pressed():
+    return {mode: _pressed(mode) for mode in ("uzawa", "newton")}
+
+
+def test_same_converged_state_as_uzawa(pressed):
+    """Frictionless load/unload path of the pressed hairpin, both solves
+    held to a gap tolerance of 1e-7 eps: the generalized Newton converges
+    at every step to the state Uzawa converges to, within 1e-8 eps
+    (measured: 9e-9 eps; at the default tolerance 1e-3 eps the two differ by
+    2.5e-3 eps at the free end, each within its tolerance of the exact
+    contact, the lever arm amplifying)."""
+    rod, uz = pressed["uzawa"]
+    _, nw = pressed["newton"]
+    assert uz.converged and nw.converged, (uz.message, nw.message)
+    assert len(uz.steps) == len(nw.steps)
+    eps = rod.contact.radius
+    tol = rod.contact.tolerance * eps
+    for a, b in zip(uz.steps, nw.steps):
+        assert a.load_factor == b.load_factor
+        assert b.contact.penetration <= tol
+        assert np.abs(a.r - b.r).max() <= 1e-8 * eps
+        fa, fb = a.contact.total_force, b.contact.total_force
+        assert abs(fa - fb) <= 1e-6 * max(abs(fa), 1e-12) + 1e-12
+    # back to the start (frictionless, elastic), as with Uzawa
+    np.testing.assert_allclose(nw.steps[-1].r, rod.r0, atol=1e-9)
+
+
+def _histories(rod, mode, monkeypatch, **solve):
+    """The merit histories of every generalized-Newton solve of a run."""
+    seen = []
+    orig = nonsmooth.contact_newton
+
+    def spy(*a, **k):
+        out = orig(*a, **k)
+        seen.append(out[3])
+        return out
+    monkeypatch.setattr(nonsmooth, "contact_newton", spy)
+    res = rod.solve(contact_solve=mode, **solve)
+    return res, seen
+
+
+def two_cycles(h, floor):
+    """Indices ``k`` where the residuals ``h`` repeat with period 2 (within
+    5 %) above ``floor``: ``h[k] ~ h[k-2]`` and ``h[k-1] ~ h[k-3]``."""
+    h = np.asarray(h)
+    return [k for k in range(3, h.size)
+            if h[k] > floor and abs(h[k] / h[k - 2] - 1) < 0.05
+            and abs(h[k - 1] / h[k - 3] - 1) < 0.05]
+
+
+def _check_quadratic(reports, floor):
+    """Converged solves: no residual history 2-cycles; from the iterate
+    after the last shortened step (the line search's
+    global phase ends there) to the round-off ``floor`` (absolute) at most 6
+    iterations (a linear rate of 0.1 needs 8 for 8 decades); and a
+    superlinear step among them: ``log(r_{k+1}/s) / log(r_k/s) >= 1.5``
+    with ``s`` the largest residual of the solve (or, from ``s`` itself, a
+    drop by 1e3)
+    (2 for a quadratic step; the round-off floor truncates the last one).
+    Returns the number of solves checked (those that took a step).
+
+    (The residual of a stiff rod is not strictly quadratic in every step:
+    plain Newton without contact shows the same, e.g. 0.1, 3.9e-5, 2.1e-5,
+    1.5e-9 in the hairpin's first step, the update, not the residual,
+    converging quadratically; see SolverOptions.rtol.)"""
+    n = 0
+    for rep in reports:
+        if not rep.converged:
+            continue
+        h = np.asarray(rep.history)
+        assert not two_cycles(h, floor), h
+        below = np.flatnonzero(h <= floor)
+        k = below[0] if below.size else h.size - 1
+        # the local phase: from the last shortened step on (before it the
+        # line search globalizes, the active set settles)
+        short = [j for j, a in enumerate(rep.step_lengths[:k]) if a < 1]
+        top = short[-1] + 1 if short else 0
+        if k == top:
+            continue
+        s = h.max()
+        assert k - top <= 6, h
+        x = np.log(np.maximum(h[top:k + 1], 1e-300) / s)
+        q = [x[j] / x[j - 1] for j in range(1, x.size) if x[j - 1] < 0]
+        drops = h[top + 1:k + 1] / h[top:k]
+        if k - top >= 2:                 # (one step into the floor says nothing)
+            assert max(q, default=0.0) >= 1.5 or drops.min() <= 1e-3, h
+        n += 1
+    return n
+
+
+def test_quadratic_convergence_and_no_cycles(pressed, monkeypatch):
+    rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 40)
+    rod.clamp("start").add_force("end", [0, -0.6, 0]).enable_contact()
+    res, reps = _histories(rod, "newton", monkeypatch, n_steps=12, path=[0, 1, 0])
+    assert res.converged, res.message
+    assert _check_quadratic(reps, 1e-8) >= 10
+    # contact on and off along the path: no Uzawa update was needed
+    assert all(st.contact.uzawa == 0 for st in res.steps)
+
+
+@pytest.mark.slow
+def test_rotational_friction_scene_obeys_coulomb_and_converges_fast(monkeypatch):
+    """The rotational-friction scene (tests/test_friction_scenes.py) with
+    the generalized Newton: converged, Coulomb's law at every step, the
+    penetration within tolerance, and every Newton solve converges
+    superlinearly without cycling."""
+    from helpers import load_demo
+    rf = load_demo("rotational_friction")
+    rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+    res, reps = _histories(rod, "newton", monkeypatch, n_steps=8)
+    assert res.converged, res.message
+    coulomb_checks(res, 0.0, rf.EPS)
+    for st in res.steps[1:]:
+        assert st.contact.penetration <= 1e-3 * rf.EPS
+    assert _check_quadratic(reps, 1e-8) >= 5
