@@ -38,7 +38,8 @@ class Spec:
             return (f"an integer in [{self.lo}, {self.hi}]" if self.hi is not None
                     else f"an integer >= {self.lo}")
         op = ">" if self.lo_open else ">="
-        return f"a finite number {op} {self.lo:g}" if self.lo is not None else "a finite number"
+        words = "a finite number" + (f" {op} {self.lo:g}" if self.lo is not None else "")
+        return words + (f" and <= {self.hi:.17g}" if self.hi is not None else "")
 
     def check(self, name, v):
         """``v`` if it is allowed, else ValueError naming ``name``, the

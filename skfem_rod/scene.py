@@ -449,44 +449,25 @@ LOAD_COMMON = {
     "vector": Key(VECTOR, doc="value at load factor 1 (per unit length if distributed)"),
 }
 
+def _checker(spec):
+    """The scene's validator of an option :class:`~skfem_rod.options.Spec`
+    (:class:`~skfem_rod.options.SolverOptions`,
+    :class:`~skfem_rod.contact.ContactOptions`)."""
+    if spec.kind == "number":
+        return Number(spec.lo, spec.hi, lo_open=spec.lo_open, hi_open=False)
+    if spec.kind == "integer":
+        return Integer(spec.lo, spec.hi)
+    if spec.kind == "boolean":
+        return Boolean()
+    return Choice(*spec.choices)
+
+
 def _contact_keys():
     from .contact import ContactOptions
-    d = {f.name: (None if f.default is MISSING else f.default)
-         for f in fields(ContactOptions)}
-    docs = {"radius": "contact radius eps (default: section radius)",
-            "penalty": "compliance mu_N (default 10 eps^4 / EI)",
-            "exclusion": "excluded arclength (default pi eps)",
-            "n_slave": "slave points per element",
-            "tolerance": "Uzawa tolerance (times eps)",
-            "max_uzawa": "Uzawa updates per step",
-            "margin": "extra search reach (default eps)",
-            "gamma_T": "tangential Coulomb coefficient (0: no friction)",
-            "gamma_R": "rotational Coulomb coefficient, a length (0: none)",
-            "mu_T": "tangential friction compliance (default: penalty)",
-            "mu_R": "rotational friction compliance (default: penalty / eps^2)",
-            "friction_tolerance": "Uzawa tolerance of the friction multipliers "
-                                  "(times gamma f_N)",
-            "penalty_growth": "adaptive Uzawa penalty: growth factor where the "
-                              "violation stalls (1: fixed penalty)",
-            "max_penalty_scale": "cap of the adaptive penalty (times the nominal one)",
-            "rotational_slip": "what the rotational friction law acts on: \"twist\", "
-                               "\"circumferential\" or \"pivot\"",
-            "crossing": "point-to-point pairs at the closest points of crossing strands",
-            "crossing_penalty": "compliance of the crossing pairs (default penalty / eps)",
-            "crossing_angle": "crossing pairs only above this angle between the strands "
-                              "(rad)"}
-    checks = {"radius": POSITIVE, "penalty": POSITIVE, "exclusion": POSITIVE,
-              "n_slave": Integer(1, 20), "tolerance": POSITIVE,
-              "max_uzawa": Integer(1, 10_000), "margin": Number(0, lo_open=False),
-              "gamma_T": Number(0, lo_open=False), "gamma_R": Number(0, lo_open=False),
-              "mu_T": POSITIVE, "mu_R": POSITIVE, "friction_tolerance": POSITIVE,
-              "penalty_growth": Number(1, lo_open=False),
-              "max_penalty_scale": Number(1, lo_open=False),
-              "rotational_slip": Choice("twist", "circumferential", "pivot"),
-              "crossing": Boolean(), "crossing_penalty": POSITIVE,
-              "crossing_angle": Number(0, math.pi / 2)}
+    from .options import option_specs
     keys = {"enabled": Key(Boolean(), True, "switch self-contact on")}
-    keys.update({n: Key(checks[n], d[n], docs[n]) for n in d})
+    keys.update({n: Key(_checker(spec), None if default is MISSING else default, spec.doc)
+                 for n, (spec, default) in option_specs(ContactOptions).items()})
     return keys
 
 
@@ -495,20 +476,10 @@ CONTACT = _contact_keys()
 
 def _solver_keys():
     from .options import option_specs
-
-    def checker(spec):          # the scene's validator of a SolverOptions spec
-        if spec.kind == "number":
-            return Number(spec.lo, spec.hi, lo_open=spec.lo_open)
-        if spec.kind == "integer":
-            return Integer(spec.lo, spec.hi)
-        if spec.kind == "boolean":
-            return Boolean()
-        return Choice(*spec.choices)
-    specs = option_specs()
     keys = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
             "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times")}
-    keys.update({n: Key(checker(spec), default, spec.doc)
-                 for n, (spec, default) in specs.items()})
+    keys.update({n: Key(_checker(spec), default, spec.doc)
+                 for n, (spec, default) in option_specs().items()})
     keys["method"] = Key(Choice("newton", "arclength"), "newton",
                          "load stepping, or pseudo-arclength continuation (through limit "
                          "points; path must be [0, lam_end], n_steps sets the first step)")

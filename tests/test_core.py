@@ -390,3 +390,46 @@ def test_crossing_strands_never_converge_through_each_other(crossing):
         assert "overlap" in res.message and "crossing contact" in res.message
     else:
         assert res.steps[-1].load_factor > 0.15      # beyond where the other stops
+
+
+def test_docs_contact_table_matches_the_contact_specs():
+    """docs/scenes.md's [contact] table: one row per key of the scene's
+    [contact] table (built from ContactOptions' specs, as the API checks
+    them), no duplicates (two rows had drifted in twice), and the defaults
+    of the options that have a fixed one."""
+    import re
+    from dataclasses import MISSING
+
+    from skfem_rod import scene
+    from skfem_rod.contact import ContactOptions
+    from skfem_rod.options import option_specs
+    text = (PKG.parent / "docs" / "scenes.md").read_text()
+    block = text.split("### `[contact]`", 1)[1].split("\n#", 1)[0]
+    rows = re.findall(r"^\| `(\w+)` \| [^|]+ \| ([^|]+) \|", block, flags=re.M)
+    names = [n for n, _ in rows]
+    assert len(names) == len(set(names)), "duplicate rows"
+    assert set(names) == set(scene.CONTACT)
+    defaults = dict(rows)
+    for name, (spec, default) in option_specs(ContactOptions).items():
+        cell = defaults[name].strip().strip("`").strip()
+        if default is None or default is MISSING:
+            continue                                   # derived from other values
+        if spec.kind == "boolean":
+            assert (cell == "true") == default, name
+        elif spec.kind == "choice":
+            assert cell.strip('"') == default, name
+        elif name == "crossing_angle":
+            assert cell == "15 degrees" and default == pytest.approx(np.radians(15.0))
+        else:
+            assert float(cell) == default, name
+    # the scene and the API refuse the same values with the same bounds
+    for name, (spec, default) in option_specs(ContactOptions).items():
+        if spec.kind in ("number", "integer") and spec.lo is not None:
+            bad = spec.lo - 1 if spec.kind == "integer" or not spec.lo_open else spec.lo
+            args = dict(radius=0.1, penalty=1e-3, exclusion=0.3)
+            args[name] = type(default)(bad) if isinstance(default, int) else float(bad)
+            with pytest.raises(ValueError, match=f"contact {name} must be"):
+                ContactOptions(**args)
+            with pytest.raises(Exception):               # the scene validator's refusal
+                scene.CONTACT[name].check(args[name])
+            scene.CONTACT[name].check(default if default not in (None, MISSING) else 1.0)

@@ -4,9 +4,22 @@ nonlocal assembler (:mod:`.assembly`), and Coulomb self-friction: the law
 (:mod:`.friction_assembly`).  :class:`ContactOptions` holds the
 parameters; ``Rod.enable_contact`` switches contact on (off by default, and
 then no contact code runs)."""
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, field, fields
 
 import numpy as np
+
+from ..options import Spec
+
+
+def _field(default, kind, doc, **kw):
+    """A field of :class:`ContactOptions` with its :class:`Spec` (the one
+    place the option is checked; the scene's ``[contact]`` keys and their
+    docs are built from it)."""
+    return field(default=default, metadata={"spec": Spec(kind, doc, **kw)})
+
+
+#: options derived from others when not given (None): name -> how
+_DERIVED = ("margin", "mu_T", "mu_R", "crossing_penalty")
 
 
 @dataclass
@@ -61,24 +74,40 @@ class ContactOptions:
     crossing_angle : crossing pairs only where the strands' tangents make
         more than this angle (radians); default 15 degrees.
     """
-    radius: float
-    penalty: float
-    exclusion: float
-    n_slave: int = 3
-    tolerance: float = 1e-3
-    max_uzawa: int = 30
-    margin: float = None
-    gamma_T: float = 0.0
-    gamma_R: float = 0.0
-    mu_T: float = None
-    mu_R: float = None
-    friction_tolerance: float = 1e-3
-    penalty_growth: float = 4.0
-    max_penalty_scale: float = 1e3
-    rotational_slip: str = "twist"
-    crossing: bool = False
-    crossing_penalty: float = None
-    crossing_angle: float = float(np.radians(15.0))
+    radius: float = _field(MISSING, "number", "contact radius eps (default: section radius)",
+                           lo=0.0)
+    penalty: float = _field(MISSING, "number", "compliance mu_N (default 10 eps^4 / EI)",
+                            lo=0.0)
+    exclusion: float = _field(MISSING, "number", "excluded arclength (default pi eps)", lo=0.0)
+    n_slave: int = _field(3, "integer", "slave points per element", lo=1, hi=20)
+    tolerance: float = _field(1e-3, "number", "Uzawa tolerance (times eps)", lo=0.0)
+    max_uzawa: int = _field(30, "integer", "Uzawa updates per step", lo=1, hi=10_000)
+    margin: float = _field(None, "number", "extra search reach (default eps)", lo=0.0,
+                           lo_open=False)
+    gamma_T: float = _field(0.0, "number", "tangential Coulomb coefficient (0: no friction)",
+                            lo=0.0, lo_open=False)
+    gamma_R: float = _field(0.0, "number", "rotational Coulomb coefficient, a length (0: none)",
+                            lo=0.0, lo_open=False)
+    mu_T: float = _field(None, "number", "tangential friction compliance (default: penalty)",
+                         lo=0.0)
+    mu_R: float = _field(None, "number", "rotational friction compliance (default: penalty "
+                                         "/ eps^2)", lo=0.0)
+    friction_tolerance: float = _field(1e-3, "number", "Uzawa tolerance of the friction "
+                                                       "multipliers (times gamma f_N)", lo=0.0)
+    penalty_growth: float = _field(4.0, "number", "adaptive Uzawa penalty: growth factor where "
+                                                  "the violation stalls (1: fixed penalty)",
+                                   lo=1.0, lo_open=False)
+    max_penalty_scale: float = _field(1e3, "number", "cap of the adaptive penalty (times the "
+                                                     "nominal one)", lo=1.0, lo_open=False)
+    rotational_slip: str = _field("twist", "choice", "what the rotational friction law acts on",
+                                  choices=("twist", "circumferential", "pivot"))
+    crossing: bool = _field(False, "boolean", "point-to-point pairs at the closest points of "
+                                              "crossing strands")
+    crossing_penalty: float = _field(None, "number", "compliance of the crossing pairs "
+                                                     "(default penalty / eps)", lo=0.0)
+    crossing_angle: float = _field(float(np.radians(15.0)), "number",
+                                   "crossing pairs only above this angle between the strands "
+                                   "(rad, below pi/2)", lo=0.0, hi=float(np.pi / 2))
 
     @property
     def friction(self):
@@ -86,52 +115,21 @@ class ContactOptions:
         return self.gamma_T > 0 or self.gamma_R > 0
 
     def __post_init__(self):
-        for name in ("radius", "penalty", "exclusion", "tolerance"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
-                                           and np.isfinite(v) and v > 0):
-                raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")
-        for name in ("n_slave", "max_uzawa"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, np.integer)) and v >= 1):
-                raise ValueError(f"contact {name} must be an integer >= 1, got {v!r}")
-        if self.margin is None:
-            self.margin = self.radius
-        if not (np.isfinite(self.margin) and self.margin >= 0):
-            raise ValueError(f"contact margin must be a finite number >= 0, got {self.margin!r}")
-        for name in ("gamma_T", "gamma_R"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
-                                           and np.isfinite(v) and v >= 0):
-                raise ValueError(f"contact {name} must be a finite number >= 0, got {v!r}")
-        if self.mu_T is None:
-            self.mu_T = self.penalty
-        if self.mu_R is None:
-            self.mu_R = self.penalty / self.radius ** 2
-        for name in ("penalty_growth", "max_penalty_scale"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
-                                           and np.isfinite(v) and v >= 1):
-                raise ValueError(f"contact {name} must be a finite number >= 1, got {v!r}")
-        for name in ("mu_T", "mu_R", "friction_tolerance"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
-                                           and np.isfinite(v) and v > 0):
-                raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")
-        if self.rotational_slip not in ("twist", "circumferential", "pivot"):
-            raise ValueError("contact rotational_slip must be 'twist', 'circumferential' or "
-                             f"'pivot', got {self.rotational_slip!r}")
-        if not isinstance(self.crossing, (bool, np.bool_)):
-            raise ValueError(f"contact crossing must be True or False, got {self.crossing!r}")
-        if self.crossing_penalty is None:
-            self.crossing_penalty = self.penalty / self.radius
-        for name in ("crossing_penalty", "crossing_angle"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float, np.floating))
-                                           and np.isfinite(v) and v > 0):
-                raise ValueError(f"contact {name} must be a finite number > 0, got {v!r}")
+        # the given values first (the derived defaults are computed from them)
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not (v is None and f.name in _DERIVED):
+                f.metadata["spec"].check(f"contact {f.name}", v)
+        derived = dict(margin=self.radius, mu_T=self.penalty,
+                       mu_R=self.penalty / self.radius ** 2,
+                       crossing_penalty=self.penalty / self.radius)
+        for f in fields(self):
+            if f.name in _DERIVED and getattr(self, f.name) is None:
+                setattr(self, f.name, derived[f.name])
+                f.metadata["spec"].check(f"contact {f.name}", getattr(self, f.name))
         if self.crossing_angle >= np.pi / 2:
-            raise ValueError(f"contact crossing_angle must be below pi/2, got {self.crossing_angle!r}")
+            raise ValueError("contact crossing_angle must be below pi/2 (strands at a right "
+                             f"angle always cross), got {self.crossing_angle!r}")
 
     def friction_params(self, push_forward=True, scale_T=1.0, scale_R=1.0):
         """The :class:`.friction_assembly.FrictionParams` of these options
