@@ -123,6 +123,29 @@ class SolverOptions:
         tangent yet) can put one strand on the far side of another, and the
         solve converges there: a hairpin leg pressed by a large force ends
         up through the other leg (``tests/test_predictor_cap.py``).
+    dynamics : follow the path by implicit pseudo-dynamics where a load
+        step fails (:mod:`skfem_rod.dynamics`): backward-Euler steps with
+        the lumped viscous metric of :func:`skfem_rod.relax.metric`, an
+        adaptive pseudo-time step (doubled after an easy Newton solve,
+        halved after a failed one) and the load advanced with the
+        pseudo-time, contact enforced at every step; the state is recorded
+        once the viscous force is below ``dynamics_tol`` and Newton with the
+        viscous term off has polished it into an equilibrium.  Excludes
+        ``snap="relax"``.
+    dynamics_dt : first pseudo-time step of a damped phase (units of the
+        metric: ``1`` damps a position dof by ``B / (L/10)^2`` per unit
+        length and unit velocity).
+    dynamics_tol : viscous force (relative to the force scale) below which a
+        damped state is polished into an equilibrium.
+    dynamics_uzawa : run the augmented-Lagrangian loop to its tolerances in
+        every damped step (default true: the penetration is within the
+        contact tolerance at every pseudo-time step; false: a damped step is
+        one Newton solve with the multipliers of the last converged state
+        held and the penalty taking up new contact, measured 0.1-0.4 eps of
+        penetration in the plectoneme; the recorded states are solved in
+        full either way).
+    max_damped_steps : accepted damped steps per damped phase before the
+        solve gives up.
     position_correction : after a Newton update that raised the residual,
         one Newton step on the positions alone with the rotations held
         (default true; :func:`skfem_rod.newton.position_correction`): the
@@ -180,10 +203,29 @@ class SolverOptions:
                                                  "normal multipliers too "
                                                  "(skfem_rod.nonsmooth)",
                               choices=("uzawa", "newton"))
+    dynamics: bool = _opt(False, "boolean", "where a load step fails, implicit "
+                                            "pseudo-dynamics (damped backward-Euler steps, "
+                                            "adaptive pseudo-time step) to the next "
+                                            "equilibrium (skfem_rod.dynamics)")
+    dynamics_dt: float = _pos(1.0, "first pseudo-time step of a damped phase "
+                                   "(skfem_rod.dynamics)")
+    dynamics_tol: float = _opt(1e-3, "number", "viscous force (relative to the force scale) "
+                                               "below which a damped state is polished into an "
+                                               "equilibrium", lo=0.0, hi=1.0)
+    dynamics_uzawa: bool = _opt(True, "boolean", "run the Uzawa loop to its tolerances in "
+                                                 "every damped step (false: only in the static "
+                                                 "steps and polishes; damped steps hold the "
+                                                 "multipliers, the penalty takes up new "
+                                                 "contact)")
+    max_damped_steps: int = _opt(5000, "integer", "damped steps per damped phase before "
+                                                  "giving up", lo=1, hi=10_000_000)
 
     def __post_init__(self):
         for f in fields(self):
             f.metadata["spec"].check(f.name, getattr(self, f.name))
+        if self.dynamics and self.snap == "relax":
+            raise ValueError("dynamics=True and snap='relax' exclude each other: the "
+                             "pseudo-dynamics crosses the snaps itself (use snap='cut')")
 
 
 def option_specs(cls=None):

@@ -265,6 +265,13 @@ def solve(rod, n_steps=1, path=None, callback=None, start=None, **kwargs):
         result.finish(False, f"no equilibrium at load factor 0 from the {where}: {rep.reason}")
         return result
     S.keep(0.0, r, R, rep, 0.0, callback)
+    if opts.dynamics:
+        from .dynamics import follow
+        result = follow(S, r, R, first_step(rod, n_steps, times, values, opts), times, values,
+                        callback)
+        if result.converged:
+            warn_shortfall(result)
+        return result
     return follow_path(S, r, R, n_steps, times, values, callback)
 
 

@@ -1,0 +1,238 @@
+"""Plectoneme by implicit pseudo-dynamics: PyElastica's plectoneme set-up
+twisted to 10 turns with ``rod.solve(..., dynamics=True)``.
+
+Usage::
+
+    python benchmarks/bench_plectoneme.py                 # 100 and 200 elements,
+                                                          # gamma_T = 0 and 0.3
+                                                          # -> RESULTS_plectoneme.md,
+                                                          #    plectoneme.png
+    python benchmarks/bench_plectoneme.py --elements 100 --gammas 0 --budget 120
+
+Scene (issue 13): L = 1, radius r = 0.025, E = 1e6, G = E / 1.5 (PyElastica's
+Poisson ratio 0.5, so explicit stiffnesses: EA = E pi r^2, GA = G pi r^2,
+EI = E pi r^4 / 4, GJ = G pi r^4 / 2); s = 0 clamped; s = L pinned in y and
+z, free along x, under a constant dead tension T = 10 EI / L^2 along +x, and
+turned about x by 10 turns (load factor 1); self-contact of radius r
+(default penalty, tolerance 1e-3 r); a constant lateral dead force 1e-2 T at
+mid-length breaks the symmetry (PyElastica's rod buckles from round-off).
+The end rotation is stepped by pi/2 per load step (``max_rotation_step``):
+40 nominal steps.
+
+Each run has a wall-time ``budget`` (the callback stops the solve after the
+first equilibrium past it); what it reached is reported.
+
+Reference relations plotted beside the results (docs/pseudo-dynamics.md):
+the straight twisted rod ``M = GJ 2 pi n / L``; the clamped Greenhill
+threshold (demos/twisted_rod.py, ``greenhill_factor``); the hard-core
+plectoneme plateau torque and end shortening per turn of Neukirch & Marko,
+PRL 106, 138104 (2011) with superhelix radius ``R = r`` (two plies in
+contact): ``T = B sin^4 t (1 + 2 cos^2 t) / (2 R^2 cos 2t)`` fixes the ply
+angle ``t``, then ``M_p = 2 B sin^3 t cos t / (R cos 2t)`` and
+``d(shortening)/dn = 4 pi R / sin 2t``.
+"""
+import argparse
+import datetime
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from skfem_rod import Rod, Section, geometry
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests"))
+from helpers import load_demo  # noqa: E402
+
+tw = load_demo("twisted_rod")
+
+L, RADIUS, E = 1.0, 0.025, 1e6
+G = E / 1.5
+AREA, INERTIA = np.pi * RADIUS ** 2, np.pi * RADIUS ** 4 / 4
+EI, GJ = E * INERTIA, G * 2 * INERTIA
+TENSION = 10 * EI / L ** 2
+TURNS = 10.0
+
+
+def section():
+    return Section(EA=E * AREA, GA1=G * AREA, GA2=G * AREA, EI1=EI, EI2=EI, GJ=GJ,
+                   radius=RADIUS)
+
+
+def build(n_elements, gamma_T=0.0, turns=TURNS, imperfection=1e-2):
+    """The rod of the module doc."""
+    rod = Rod(geometry.straight(L), section(), n_elements)
+    rod.clamp("start")
+    rod.pin("end", components=(1, 2))
+    rod.prescribe_rotation("end", [2 * np.pi * turns, 0.0, 0.0])
+    rod.add_force("end", [TENSION, 0.0, 0.0], constant=True)
+    s = rod.mesh.s_nodes
+    rod.add_force(float(s[np.argmin(np.abs(s - L / 2))]), [0.0, imperfection * TENSION, 0.0],
+                  constant=True)
+    rod.enable_contact(radius=RADIUS, gamma_T=float(gamma_T))
+    return rod
+
+
+def theory():
+    """Greenhill threshold and plectoneme relations in the scene's units."""
+    lam = np.sqrt(EI / TENSION)                      # lambda = sqrt(B / T)
+    scale = np.sqrt(EI * TENSION)                    # moments in sqrt(BT)
+    m = tw.greenhill_factor(L / lam)
+    th = tw.plectoneme_theory(RADIUS / lam)          # B = T = 1 units
+    return dict(lam=lam, greenhill_torque=2 * scale * m,
+                greenhill_turns=2 * scale * m * L / (GJ * 2 * np.pi),
+                theta=th["theta"], plateau_torque=th["torque"] * scale,
+                shortening_per_turn=th["shortening_per_turn"] * lam)
+
+
+def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True):
+    """Solve one case; returns a dict of figures (and the result)."""
+    rod = build(n_elements, gamma_T, turns)
+    n_steps = int(np.ceil(turns * 4))
+    recs = []
+    t0 = time.perf_counter()
+    out = {}
+
+    class Budget(Exception):
+        pass
+
+    def callback(result, k):
+        st = result.steps[k]
+        c = st.contact
+        recs.append(dict(turns=st.load_factor * turns, x_end=float(st.r[rod.node("end"), 0]),
+                         torque=float(result.reaction("end", k)[1][0]),
+                         contacts=int(c.s.size), penetration=float(c.penetration) / RADIUS,
+                         true_penetration=(2 * RADIUS - c.min_distance) / RADIUS
+                         if c.min_distance is not None else None,
+                         wall=time.perf_counter() - t0))
+        out["result"] = result
+        if verbose:
+            r = recs[-1]
+            dyn = getattr(result, "dynamics", None)
+            print(f"  {k:3d}: {r['turns']:6.3f} turns  x_end={r['x_end']:.4f}  "
+                  f"M={r['torque']:.4f}  contacts={r['contacts']:3d}  "
+                  f"damped={dyn.damped_steps if dyn else 0:4d}  {r['wall']:.1f} s", flush=True)
+        if time.perf_counter() - t0 > budget:
+            raise Budget
+
+    stopped = ""
+    try:
+        result = rod.solve(n_steps, dynamics=True, callback=callback)
+        message = result.message
+    except Budget:
+        result = out["result"]
+        message = f"stopped by the wall-time budget ({budget:g} s)"
+        stopped = "budget"
+    wall = time.perf_counter() - t0
+    d = result.dynamics
+    newton = np.array(d.newton) if d.newton else np.zeros(1)
+    acc = np.array(d.accepted, dtype=bool) if d.accepted else np.zeros(1, bool)
+    true_pen = [r["true_penetration"] for r in recs if r["true_penetration"] is not None]
+    return dict(n_elements=n_elements, gamma_T=gamma_T, turns=recs[-1]["turns"],
+                wall=wall, message=message, stopped=stopped, records=recs,
+                solves=len(d.kind), newton_total=int(newton.sum()),
+                newton_median=float(np.median(newton)),
+                newton_median_accepted=float(np.median(newton[acc])) if acc.any() else None,
+                damped=d.damped_steps, rejected=int((~acc).sum()),
+                flow_steps=int(sum(st.flow_steps for st in result.steps)),
+                max_penetration_recorded=max(true_pen, default=float("-inf")),
+                max_penetration_all=d.max_penetration,
+                max_uzawa_penetration=max(r["penetration"] for r in recs),
+                timers=dict(result.steps and {}), result=result)
+
+
+def plot(runs, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    th = theory()
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    nmax = max(max(r["records"][-1]["turns"] for r in runs), 1.0)
+    nn = np.linspace(0, nmax, 100)
+    for k, r in enumerate(runs):
+        n = np.array([q["turns"] for q in r["records"]])
+        lab = f"{r['n_elements']} el., $\\gamma_T$={r['gamma_T']:g}"
+        ax[0].plot(n, [q["x_end"] for q in r["records"]], "o-", ms=3, color=f"C{k}", label=lab)
+        ax[1].plot(n, [q["torque"] for q in r["records"]], "o-", ms=3, color=f"C{k}", label=lab)
+    ax[1].plot(nn, GJ * 2 * np.pi * nn / L, "k:", lw=1, label=r"straight: $GJ\,2\pi n/L$")
+    ax[1].axhline(th["greenhill_torque"], color="C3", ls="--", lw=1,
+                  label="Greenhill, clamped")
+    ax[1].axhline(th["plateau_torque"], color="C2", ls="-.", lw=1,
+                  label="plectoneme plateau (Neukirch-Marko)")
+    # extension: straight until the snap, then the plectoneme slope from the
+    # first state with contact of the first run
+    r0 = runs[0]["records"]
+    j = next((i for i, q in enumerate(r0) if q["contacts"] > 0), None)
+    x_straight = L * (1 + TENSION / (E * AREA))
+    ax[0].axhline(x_straight, color="k", ls=":", lw=1, label="straight: $L(1+T/EA)$")
+    if j is not None:
+        n0, x0 = r0[j]["turns"], r0[j]["x_end"]
+        m = nn >= n0
+        ax[0].plot(nn[m], x0 - th["shortening_per_turn"] * (nn[m] - n0), "C2-.", lw=1,
+                   label=r"plectoneme: $-4\pi a/\sin 2\theta$ per turn")
+    ax[0].set_ylim(-0.1, 1.1)
+    ax[0].set_xlabel("turns n")
+    ax[0].set_ylabel("end position $x(L)$ (extension)")
+    ax[1].set_xlabel("turns n")
+    ax[1].set_ylabel("end torque $M_x$")
+    for a in ax:
+        a.legend(fontsize=7)
+    fig.suptitle("plectoneme (L = 1, r = 0.025, T = 10 EI/L$^2$) by implicit pseudo-dynamics")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def report(runs, path, command, png):
+    th = theory()
+    lines = [
+        "# Plectoneme by implicit pseudo-dynamics (issue 13)", "",
+        f"Generated by `{command}` on {datetime.date.today()} (2 shared cores; other",
+        "engineers' jobs ran at the same time, so wall times are upper bounds).", "",
+        "Scene: benchmarks/bench_plectoneme.py docstring (PyElastica's plectoneme: L = 1,",
+        "r = 0.025, E = 1e6, G = E/1.5, T = 10 EI/L^2, 10 turns in 40 nominal steps).",
+        f"Greenhill (clamped, L/lambda = {L / th['lam']:.3f}): {th['greenhill_turns']:.3f} turns, "
+        f"M = {th['greenhill_torque']:.4f}; hard-core plectoneme: ply angle "
+        f"{np.degrees(th['theta']):.2f} deg, plateau torque {th['plateau_torque']:.4f}, "
+        f"shortening {th['shortening_per_turn']:.4f} per turn.", "",
+        "| elements | gamma_T | turns reached | wall (s) | solves | Newton its (total) | "
+        "median its/solve | damped steps | rejected solves | gradient-flow steps | "
+        "max true penetration / r (recorded) | (all damped states) | how it ended |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in runs:
+        lines.append(
+            f"| {r['n_elements']} | {r['gamma_T']:g} | {r['turns']:.3f} | {r['wall']:.1f} | "
+            f"{r['solves']} | {r['newton_total']} | {r['newton_median']:.0f} | {r['damped']} | "
+            f"{r['rejected']} | {r['flow_steps']} | {r['max_penetration_recorded']:.2e} | "
+            f"{r['max_penetration_all']:.2e} | {r['message'][:160]} |")
+    lines += ["", f"![extension and torque against turns]({os.path.basename(png)})", ""]
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--elements", type=int, nargs="+", default=[100, 200])
+    p.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.3])
+    p.add_argument("--turns", type=float, default=TURNS)
+    p.add_argument("--budget", type=float, default=300.0, help="wall-time budget per run (s)")
+    p.add_argument("--out", default=str(HERE))
+    a = p.parse_args(argv)
+    runs = []
+    for n in a.elements:
+        for g in a.gammas:
+            print(f"{n} elements, gamma_T = {g:g}", flush=True)
+            r = run(n, g, a.turns, a.budget)
+            print(f"  -> {r['turns']:.3f} turns in {r['wall']:.1f} s: {r['message']}", flush=True)
+            runs.append(r)
+    png = plot(runs, os.path.join(a.out, "plectoneme.png"))
+    command = "python benchmarks/bench_plectoneme.py " + " ".join(argv or sys.argv[1:])
+    report(runs, os.path.join(a.out, "RESULTS_plectoneme.md"), command.strip(), png)
+    return runs
+
+
+if __name__ == "__main__":
+    main()

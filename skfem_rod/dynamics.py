@@ -1,0 +1,411 @@
+r"""Implicit pseudo-dynamics path following through snaps (solve option
+``dynamics=True``).
+
+Load stepping (:mod:`skfem_rod.solver`) follows a branch of equilibria as
+long as Newton finds one near the last converged state.  Past a fold or a
+subcritical bifurcation (a twisted rod under tension snapping into a loop,
+the loop winding into a plectoneme) there is none nearby.  Implicit rod
+codes (DisMech, ElasticKnots) cross these snaps by integrating damped
+dynamics with backward Euler and an adaptive time step; the static solution
+is the rest state.  Here the damped step is the proximal step of
+:mod:`skfem_rod.relax`: with the lumped metric ``W``
+(:func:`skfem_rod.relax.metric`) and a pseudo-time step ``dt``, backward
+Euler on ``W dy/dtau = -G(y, lam(tau))`` gives, per step,
+
+    G(y_{n+1}, lam_{n+1}) + (1/dt) W (y_{n+1} (-) y_n) = 0,
+
+solved by the one Newton (:func:`skfem_rod.newton.newton`, the viscous term
+through ``Problem.viscous``) inside the one augmented-Lagrangian loop
+(:func:`skfem_rod.augmented.augmented_lagrangian`): contact and friction are
+enforced, and the true strand distance checked, at every pseudo-time step,
+not only at the end of a relaxation.  Friction slips are those of the step
+(each accepted step is committed), as backward Euler on the paper's eq. 1.1
+requires.
+
+The loop, in plain sight::
+
+    static step lam -> lam_new (dt = infinity: plain load step, Newton + AL)
+    converged, stable (Morse index 0) and no strand passage: record it
+    converged to an unstable equilibrium: push it off along its unstable
+        mode and start the damped phase there, at lam_new
+    failed: damped phase from the last equilibrium, load ramped to lam_new:
+        repeat:
+            h = nominal step * min(1, dt / (LOAD_RAMP dt_0)), held at lam_new
+            implicit Euler step with viscosity 1/dt (Newton + AL: contact
+                enforced and true distance checked at every step)
+            failed or strand passage: dt /= 2 (stop below DT_FLOOR dt_0)
+            accepted: commit (friction slips start there); dt *= 2 after two
+                steps in a row with <= EASY Newton iterations per AL pass
+            at lam_new, viscous force |W dy| / dt <= dynamics_tol * force
+                scale, and away from the last saddle:
+                polish: Newton + AL with the viscous term off; converged,
+                near (POLISH_REACH) and stable: record it, back to static
+                steps; unstable: push off along the mode, go on
+
+Every recorded state is therefore a static equilibrium to the solver's
+``rtol`` (the viscous force is zero there, not small); the damped states in
+between are not recorded (their figures are in :class:`DynamicsLog`).
+The static step is the ``dt = infinity`` member of the family: on a stable
+stretch of the path the solve is load stepping, and the work of the
+dynamics is spent only where there is no nearby equilibrium.
+"""
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .augmented import augmented_lagrangian
+from .newton import newton
+from .problem import Viscous, clearance_ok
+from .relax import metric
+
+__all__ = ["DynamicsLog", "PseudoDynamics", "follow"]
+
+#: the load moves by the nominal step per damped step once ``dt`` reaches
+#: ``LOAD_RAMP`` times the first damped step; below, in proportion to dt
+LOAD_RAMP = 64.0
+#: grow dt after an implicit step that took at most this many Newton iterations
+EASY = 4
+#: the damped phase gives up when dt falls below this fraction of its first value
+DT_FLOOR = 1e-8
+#: after a push off a saddle, no polish until the flow is this many push
+#: sizes away from it
+SADDLE_DISTANCE = 4.0
+#: dt grows to at most this multiple of its first value
+DT_CEIL = 1e8
+#: Newton iterations of one damped step (it is cheaper to halve dt than to iterate)
+DAMPED_ITERATIONS = 10
+#: Newton iterations of a polish
+POLISH_ITERATIONS = 12
+#: a polish that moves a node farther than this fraction of the rod length
+#: is a jump, not a polish: rejected
+POLISH_REACH = 0.1
+
+
+@dataclass
+class DynamicsLog:
+    """What the pseudo-dynamics did, for benchmarks and tests
+    (``Result.dynamics``): one entry per implicit solve (static steps, damped
+    steps and polishes), and per recorded equilibrium the damped steps that
+    led to it."""
+    #: kind of each solve: "static", "damped" or "polish"
+    kind: list = field(default_factory=list)
+    #: Newton iterations of each solve (all Uzawa passes)
+    newton: list = field(default_factory=list)
+    #: converged (accepted) or not
+    accepted: list = field(default_factory=list)
+    #: true penetration (2 eps - true distance, <= 0: clear) of each accepted
+    #: solve with contact, relative to the contact radius
+    penetration: list = field(default_factory=list)
+    #: pseudo-time t of the load path at each accepted solve
+    time: list = field(default_factory=list)
+    #: viscous force of each accepted damped step relative to the force scale
+    viscous: list = field(default_factory=list)
+    #: pseudo-time step of each accepted damped step
+    dt: list = field(default_factory=list)
+    #: damped steps before each recorded equilibrium (0: a static step)
+    damped_per_record: list = field(default_factory=list)
+
+    def add(self, kind, rep, accepted, t=None, problem=None):
+        self.kind.append(kind)
+        self.newton.append(int(rep.newton_total or rep.iterations))
+        self.accepted.append(bool(accepted))
+        if accepted:
+            self.time.append(t)
+            if problem is not None and problem.contact is not None \
+                    and rep.min_distance is not None:
+                eps = problem.contact.radius
+                self.penetration.append((2 * eps - rep.min_distance) / eps)
+
+    @property
+    def damped_steps(self):
+        """Accepted damped (implicit Euler) steps."""
+        return int(sum(a for k, a in zip(self.kind, self.accepted) if k == "damped"))
+
+    @property
+    def max_penetration(self):
+        """Largest true penetration over every accepted solve, relative to the
+        contact radius (``-inf`` without contact)."""
+        return float(max(self.penetration, default=-np.inf))
+
+
+#: a symmetrized tangent with an eigenvalue below -STABLE_FLOOR times its
+#: largest diagonal entry is unstable (round-off and the bifurcation point
+#: itself are not)
+STABLE_FLOOR = 1e-10
+
+
+def morse_index(problem, r, R, lam):
+    """Number of negative eigenvalues of the symmetrized tangent on the free
+    dofs at ``(r, R, lam)`` (Sylvester's inertia of one symmetric LU,
+    :func:`skfem_rod.stability.inertia`): 0 at a stable equilibrium.  A
+    static Newton step can converge to an unstable equilibrium (the twisted
+    rod past its fold goes back to the straight branch); the damped steps
+    cannot rest there."""
+    from .stability import inertia
+    Kf = problem.free_tangent(r, R, lam)[0]
+    Ks = (0.5 * (Kf + Kf.T)).tocsc()
+    floor = STABLE_FLOOR * max(float(np.abs(Ks.diagonal()).max(initial=0.0)), 1e-300)
+    return inertia(Ks, -floor)
+
+
+def al_step(problem, r, R, lam, prescribed, opts, inner=None):
+    """One solve at load factor ``lam`` from ``(r, R)``: the AL loop
+    (:func:`~skfem_rod.augmented.augmented_lagrangian`) around ``inner``
+    (default :func:`~skfem_rod.newton.newton`), the prescribed increment
+    applied by the first pass (as :func:`skfem_rod.solver.step`).  Returns
+    ``(r, R, report)``."""
+    inner = (lambda *a, **k: newton(problem, *a, **k)) if inner is None else inner
+
+    def solve_pass(previous):
+        if previous is None:
+            return inner(r, R, lam, opts, prescribed=prescribed)
+        return inner(previous[0], previous[1], lam, opts)
+
+    r1, R1, _, rep = augmented_lagrangian(problem, solve_pass)
+    return r1, R1, rep
+
+
+def viscous_inner(problem, W, c, r_ref, R_ref):
+    """The inner solve of one implicit Euler step: :func:`~skfem_rod.newton.newton`
+    with the viscous term ``c W (y (-) y_ref)`` switched on (same signature)."""
+
+    def inner(r, R, lam, opts, prescribed=None):
+        problem.viscous = Viscous(c, W, r_ref, R_ref)
+        try:
+            return newton(problem, r, R, lam, opts, prescribed=prescribed)
+        finally:
+            problem.viscous = None
+    return inner
+
+
+class PseudoDynamics:
+    """The damped phases of one solve (module doc): the metric, the step
+    size that worked last, the log.  ``stepper`` is the
+    :class:`~skfem_rod.solver.LoadStepper` of the solve."""
+
+    def __init__(self, stepper, lam_of, times):
+        self.S = stepper
+        self.problem = stepper.problem
+        self.opts = stepper.opts
+        self.lam_of, self.times = lam_of, times
+        self.W = metric(stepper.rod, self.problem.fixed)
+        self.dt0 = self.opts.dynamics_dt
+        self.dt = None
+        self.unstable = False
+        self.saddle = None
+        self.away_from = None
+        self.log = DynamicsLog()
+        self.inner_opts = replace(self.opts,
+                                  max_iterations=min(self.opts.max_iterations, DAMPED_ITERATIONS),
+                                  rtol=max(self.opts.rtol, 1e-8),
+                                  increment_tol=max(self.opts.increment_tol, 1e-9))
+        # a polish starts next to its equilibrium: it converges fast or not at all
+        self.polish_opts = replace(self.opts, max_iterations=min(self.opts.max_iterations,
+                                                                 POLISH_ITERATIONS))
+
+    def save(self):
+        m = self.problem.multipliers
+        return None if m is None else m.copy()
+
+    def restore(self, saved):
+        if saved is not None:
+            self.problem.multipliers = saved
+
+    def damped(self, r, R, t, t_new, dt):
+        """One implicit Euler step ``t -> t_new`` with viscosity ``1 / dt``
+        from ``(r, R)``.  Returns ``(r, R, report, ok)``; a rejected step
+        leaves the multipliers as they were."""
+        p = self.problem
+        lam, lam_new = self.lam_of(t), self.lam_of(t_new)
+        saved = self.save()
+        inner = viscous_inner(p, self.W, 1.0 / dt, r, R)
+        presc = p.prescribed(lam_new - lam)
+        if self.opts.dynamics_uzawa:
+            r1, R1, rep = al_step(p, r, R, lam_new, presc, self.inner_opts, inner=inner)
+        else:
+            # the multipliers of the last converged AL solve are held, the
+            # penalty takes up new contact; the true distance is recorded
+            r1, R1, _, rep = inner(r, R, lam_new, self.inner_opts, prescribed=presc)
+            if rep.converged and p.contact is not None:
+                from .augmented import true_distance
+                rep.penetration = true_distance(p, r1, rep)
+        ok = rep.converged and clearance_ok(p.rod, r, r1)
+        if rep.converged and not ok:
+            rep.reason = "strands moved by more than half their clearance (possible passage)"
+        if not ok:
+            self.restore(saved)
+        self.log.add("damped", rep, ok, t_new, p)
+        return r1, R1, rep, ok
+
+    def polish(self, r, R, t):
+        """Newton + AL with the viscous term off at ``lam(t)`` from a damped
+        state: the equilibrium that is recorded.  Returns ``(r, R, report)``
+        or None."""
+        p, rod = self.problem, self.problem.rod
+        saved = self.save()
+        r1, R1, rep = al_step(p, r, R, self.lam_of(t), None, self.polish_opts)
+        # no clearance cap here: plies in contact slide along each other in
+        # a polish; a passage is caught by the AL loop's true-distance check
+        ok = rep.converged and np.abs(r1 - r).max() <= POLISH_REACH * rod.length
+        self.unstable = ok and morse_index(p, r1, R1, self.lam_of(t)) > 0
+        ok = ok and not self.unstable
+        self.log.add("polish", rep, ok, t, p)
+        self.saddle = (r1, R1) if self.unstable else None
+        if not ok:
+            self.restore(saved)
+            return None
+        return r1, R1, rep
+
+    def viscous_force(self, r1, R1, r, R, dt, ev):
+        """``|W (y1 (-) y) / dt|`` on the free dofs relative to the force scale
+        of the evaluation ``ev`` (the norms of Newton's convergence test)."""
+        p = self.problem
+        dy = p.to_spatial(p.increment(r1, R1, r, R))
+        f = p.to_basis(self.W * dy / dt)[p.free]
+        return float(np.linalg.norm(f)) / p.force_scale(ev)
+
+    def push(self, r, R, lam):
+        """The unstable equilibrium ``(r, R)`` moved along its unstable mode
+        (largest nodal move half the contact radius, or 1e-3 L without
+        contact; largest nodal rotation 0.1 rad): where the damped steps
+        start when a step or a polish found a saddle (a damped flow started
+        on it would stay there)."""
+        p = self.problem
+        mode = p.to_spatial(self.S.lowest_mode(r, R, lam)[1]).reshape(-1, 6)
+        size = 0.5 * p.contact.radius if p.contact is not None else 1e-3 * p.rod.length
+        a = min(size / max(np.abs(mode[:, :3]).max(), 1e-300),
+                0.1 / max(np.abs(mode[:, 3:]).max(), 1e-300))
+        # no polish until the flow is well away from the saddle (Newton would
+        # converge back onto it)
+        self.away_from = (r, SADDLE_DISTANCE * size)
+        return p.update(r, R, p.to_basis(mode.ravel()), a)
+
+    def near_saddle(self, r):
+        """True while ``r`` is within the distance of the last saddle that
+        the flow must leave before a polish."""
+        if self.away_from is None:
+            return False
+        if np.abs(r - self.away_from[0]).max() > self.away_from[1]:
+            self.away_from = None
+            return False
+        return True
+
+    def run(self, r, R, t, t_target, h_nominal):
+        """A damped phase from ``(r, R)`` at ``t`` (the equilibrium where the
+        static step to ``t_target`` failed, or a pushed saddle at
+        ``t = t_target``) to the first stable equilibrium at ``t_target``.
+        The load follows the pseudo-time up to ``t_target`` and is held
+        there.  Returns ``(r, R, t, report, damped_steps)``, or ``(None,
+        why)`` when it gives up."""
+        opts, p = self.opts, self.problem
+        dt = self.dt0 if self.dt is None else self.dt
+        steps = tries = easy = 0
+        first = True
+        why = "no damped step"
+        next_polish = np.inf                 # viscous force that allows a polish
+        while steps < opts.max_damped_steps:
+            tries += 1
+            h = h_nominal * min(1.0, dt / (LOAD_RAMP * self.dt0))
+            t_new = t_target if t + h >= t_target - 1e-14 else t + h
+            r1, R1, rep, ok = self.damped(r, R, t, t_new, dt)
+            if not ok:
+                why = rep.reason
+                easy = 0
+                dt *= 0.5
+                if dt < DT_FLOOR * self.dt0:
+                    return None, (f"the damped steps stopped at pseudo-time {t:.6g} "
+                                  f"(dt = {dt:.3g} after {steps} steps, {tries} tries): {why}")
+                continue
+            ev = rep.evaluation
+            vis = self.viscous_force(r1, R1, r, R, dt, ev)
+            self.log.viscous.append(vis)
+            self.log.dt.append(dt)
+            steps += 1
+            p.calls["damped_steps"] += 1
+            if first:
+                self.dt = 2.0 * dt               # the next phase starts there
+            first = False
+            p.commit(r1, R1, ev)                 # friction slips of the next step start here
+            r, R, t = r1, R1, t_new
+            # Newton iterations per pass of the AL loop: Uzawa passes are the
+            # contact's work, not a sign that the step is too long
+            its = (rep.newton_total or rep.iterations) / (rep.uzawa + 1)
+            easy = easy + 1 if its <= EASY else 0
+            if easy >= 2:                        # two easy steps in a row
+                dt = min(2.0 * dt, DT_CEIL * self.dt0)
+            if t >= t_target - 1e-14 and vis <= min(opts.dynamics_tol, next_polish) \
+                    and not self.near_saddle(r):
+                done = self.polish(r, R, t)
+                if done is not None:
+                    r2, R2, rep2 = done
+                    return r2, R2, t, rep2, steps
+                next_polish = 0.1 * vis          # try again once it moved on
+                if self.unstable:                # it found a saddle: leave it
+                    r, R = self.push(self.saddle[0], self.saddle[1], self.lam_of(t))
+                    next_polish, dt = np.inf, min(dt, 4 * self.dt0)
+        return None, (f"no equilibrium after {steps} damped steps (max_damped_steps="
+                      f"{opts.max_damped_steps}) from pseudo-time {t:.6g}")
+
+
+def follow(S, r, R, nominal, times, values, callback):
+    """The load steps after step 0 with pseudo-dynamics where a static step
+    fails (module doc); the loop of :func:`skfem_rod.solver.follow_path`
+    with the damped phase in place of the step cut.  Returns the finished
+    result, with the :class:`DynamicsLog` as ``result.dynamics``;
+    ``nominal`` is the nominal pseudo-time step
+    (:func:`skfem_rod.solver.first_step`)."""
+    rod, opts, result, p = S.rod, S.opts, S.result, S.problem
+    lam_of = lambda t: float(np.interp(t, times, values))         # noqa: E731
+    dyn = PseudoDynamics(S, lam_of, times)
+    result.dynamics = dyn.log
+    t, h, streak, prev = 0.0, nominal, 0, None
+    while t < 1.0 - 1e-14:
+        nxt = times[times > t + 1e-14][0]
+        hh = min(h, nxt - t)
+        t_new = nxt if hh == nxt - t else t + hh
+        lam, lam_new = lam_of(t), lam_of(t_new)
+        saved = dyn.save()
+        r1, R1, rep = S.advance(r, R, lam, lam_new, prev)
+        ok = rep.converged and clearance_ok(rod, r, r1)
+        saddle = ok and morse_index(p, r1, R1, lam_new) > 0
+        if saddle:
+            ok, rep.reason = False, "it converged to an unstable equilibrium"
+        dyn.log.add("static", rep, ok, t_new, p)
+        if ok:
+            t, prev, r, R = t_new, (lam, r, R), r1, R1
+            dyn.log.damped_per_record.append(0)
+            keep(S, lam_new, r, R, rep, t, callback)
+            streak += 1
+            if streak >= 2:
+                h = min(h * opts.grow, nominal)
+            continue
+        result.log.append(f"static step to lam={lam_new:.6g} (t={t_new:.6g}) failed "
+                          f"({rep.reason or 'strands moved by more than half their clearance'}"
+                          f"): damped steps (pseudo-dynamics)")
+        if saddle:          # start from the saddle, pushed along its unstable mode
+            r_s, R_s = dyn.push(r1, R1, lam_new)
+            out = dyn.run(r_s, R_s, t_new, t_new, nominal)
+        else:
+            dyn.restore(saved)
+            out = dyn.run(r, R, t, t_new, nominal)
+        if out[0] is None:
+            result.finish(False, f"stopped at load factor {lam:.6g} (pseudo-time {t:.6g}): "
+                                 f"{out[1]}")
+            return result
+        r, R, t, rep, steps = out
+        dyn.log.damped_per_record.append(steps)
+        result.log.append(f"{steps} damped steps to an equilibrium at lam={lam_of(t):.6g} "
+                          f"(t={t:.6g})")
+        keep(S, lam_of(t), r, R, rep, t, callback)
+        prev, streak, h = None, 0, nominal
+    result.finish(True, f"converged: {len(result.steps) - 1} steps to the end of the "
+                        f"load path (load factor {lam_of(1.0):g}); {dyn.log.damped_steps} "
+                        f"damped steps")
+    return result
+
+
+def keep(S, lam, r, R, rep, t, callback):
+    """Record an equilibrium (with its lowest eigenvalue under ``stability``)."""
+    if S.opts.stability and rep.lowest_eigenvalue is None:
+        rep.lowest_eigenvalue = S.lowest_mode(r, R, lam)[0]
+    S.keep(lam, r, R, rep, t, callback)

@@ -1,0 +1,137 @@
+"""Implicit pseudo-dynamics path following (``rod.solve(..., dynamics=True)``,
+skfem_rod/dynamics.py): the recorded states are static equilibria (viscous
+term off), the damped phases end on the load stepper's equilibrium where
+that one is unique, and a twisted rod under tension leaves the straight
+branch at Greenhill's threshold by damped steps, without the gradient
+flow."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod, Section, geometry
+from skfem_rod.dynamics import DynamicsLog, morse_index
+from skfem_rod.problem import Problem
+
+from helpers import load_demo
+
+demo = load_demo("twisted_rod")
+
+
+def section():
+    return Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=0.8)
+
+
+def cantilever(n=8):
+    rod = Rod(geometry.straight(1.0), section(), n)
+    rod.clamp("start")
+    rod.add_force("end", [0.0, 3.0, 1.0])
+    return rod
+
+
+def equilibrium_residual(rod, step):
+    """Relative residual on the free dofs of a recorded state, evaluated by
+    a fresh problem (no viscous term)."""
+    p = Problem(rod)
+    ev = p.evaluate(step.r, step.R, step.load_factor)
+    return p.residual_norm(ev) / p.force_scale(ev)
+
+
+def test_dynamics_options_are_validated():
+    rod = cantilever(2)
+    with pytest.raises(ValueError, match="dynamics=True and snap='relax' exclude each other"):
+        rod.solve(1, dynamics=True, snap="relax")
+    with pytest.raises(ValueError, match="dynamics must be true or false"):
+        rod.solve(1, dynamics="yes")
+    with pytest.raises(ValueError, match="dynamics_dt must be a finite number > 0"):
+        rod.solve(1, dynamics=True, dynamics_dt=0.0)
+    with pytest.raises(ValueError, match="dynamics_tol"):
+        rod.solve(1, dynamics=True, dynamics_tol=2.0)
+    with pytest.raises(ValueError, match="max_damped_steps"):
+        rod.solve(1, dynamics=True, max_damped_steps=0)
+
+
+def test_smooth_path_is_load_stepping():
+    """Where every static step converges to a stable equilibrium the
+    pseudo-dynamics is load stepping: the same states to round-off and no
+    damped step."""
+    ref = cantilever().solve(4)
+    res = cantilever().solve(4, dynamics=True)
+    assert ref.converged and res.converged, res.message
+    assert isinstance(res.dynamics, DynamicsLog)
+    assert res.dynamics.damped_steps == 0
+    assert len(res.steps) == len(ref.steps)
+    for a, b in zip(ref.steps, res.steps):
+        assert np.abs(a.r - b.r).max() < 1e-13
+        assert np.abs(a.R - b.R).max() < 1e-13
+
+
+@pytest.mark.slow
+def test_damped_phases_end_on_the_static_equilibrium():
+    """Static steps that fail (Newton limited to 3 iterations) are replaced
+    by damped phases; each phase ends, after the polish with the viscous
+    term off, on the equilibrium of the load factor it reached, which for a
+    cantilever is unique: the end state equals load stepping's to 1e-9, and
+    every recorded state is an equilibrium to the solver's tolerance."""
+    ref = cantilever().solve(4)
+    rod = cantilever()
+    res = rod.solve(1, dynamics=True, max_iterations=3)
+    assert res.converged, res.message
+    log = res.dynamics
+    assert log.damped_steps > 0
+    assert sum(log.damped_per_record) == log.damped_steps
+    assert len(log.kind) == len(log.newton) == len(log.accepted)
+    assert res.steps[-1].load_factor == 1.0
+    assert np.abs(res.steps[-1].r - ref.steps[-1].r).max() < 1e-9
+    for st in res.steps:
+        assert equilibrium_residual(rod, st) < 1e-9
+        assert st.flow_steps == 0                      # no gradient flow
+
+
+@pytest.fixture(scope="module")
+def twisted():
+    """Contact-free twisted rod under tension (L = 10 lambda, 16 elements,
+    imperfection 1e-2 T at mid-length), 0.1 turn per step to 2 turns."""
+    rod = demo.straight_rod(10.0, 16, turns=2.0)
+    s = rod.mesh.s_nodes
+    rod.add_force(float(s[np.argmin(np.abs(s - 5.0))]), [0.0, 0.01, 0.0], constant=True)
+    recs = []
+    res = rod.solve(20, dynamics=True,
+                    callback=lambda result, k: recs.append(result.reaction("end", k)[1][0]))
+    return rod, res, np.array(recs)
+
+
+@pytest.mark.slow
+def test_twisted_rod_leaves_the_straight_branch_at_greenhill(twisted):
+    """Static steps follow the straight twisted branch (M = GJ 2 pi n / L) up
+    to the clamped Greenhill threshold (1.670 turns for L = 10 lambda); the
+    static step past it converges to the now unstable straight state, and
+    the damped steps (pushed off along the unstable mode) take the rod into
+    the buckled, stable state on the other side: the torque drops, by damped
+    steps, without the gradient flow."""
+    rod, res, torque = twisted
+    assert res.converged, res.message
+    n = np.array([st.load_factor for st in res.steps]) * 2.0
+    x = np.array([st.r[rod.node("end"), 0] for st in res.steps])
+    short = x[0] - x
+    n_c = demo.greenhill_factor(10.0) * 2 * 10.0 / (demo.GJ * 2 * np.pi)
+    assert n_c == pytest.approx(1.670, abs=1e-3)
+    straight = n < n_c - 0.05
+    assert np.allclose(torque[straight], demo.GJ * 2 * np.pi * n[straight] / 10.0, rtol=2e-3)
+    first = int(np.argmax(short > 0.1))
+    assert n[first - 1] < n_c <= n[first] + 1e-9
+    assert torque[first] < torque[first - 1]             # the snap: the torque drops
+    log = res.dynamics
+    assert log.damped_steps > 0
+    assert log.damped_per_record[first - 1] > 0          # that step was damped
+    assert all(st.flow_steps == 0 for st in res.steps)
+
+
+@pytest.mark.slow
+def test_twisted_rod_records_stable_equilibria(twisted):
+    """Every recorded state is an equilibrium with the viscous term off
+    (relative residual below 1e-9) and stable (no negative eigenvalue of
+    the symmetrized tangent)."""
+    rod, res, _ = twisted
+    p = Problem(rod)
+    for st in res.steps:
+        assert equilibrium_residual(rod, st) < 1e-9
+        assert morse_index(p, st.r, st.R, st.load_factor) == 0
