@@ -6,12 +6,14 @@ at 90 and 30 degrees pressed together, elements 10 contact radii long,
 driven to a true penetration below 1e-3 radius by Newton + Uzawa."""
 import numpy as np
 import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import law
 from skfem_rod.contact.crossing import (carry, closest_points, crossing_pairs, crossing_work,
-                                        min_distance)
+                                        min_distance, sampled_angle)
 from skfem_rod.contact.search import monomial_coefficients, arc_distance, search, slave_points
 from skfem_rod.element import shape_functions
 from skfem_rod.mesh import RodMesh
@@ -126,8 +128,14 @@ def test_crossing_between_gauss_points_is_detected(angle):
     assert cp.distance[0] == pytest.approx(1.2 * EPS, rel=1e-12)
     assert cp.u[0] == pytest.approx(0.3, rel=1e-10) and cp.v[0] == pytest.approx(0.3, rel=1e-10)
     assert np.allclose(cp.normal[0], [0, 0, -1.0])
-    # near-parallel strands: no crossing pair (the Gauss-point pairs' job)
+    # 5 degrees: a pair (the Gauss points would miss 0.005 eps at elements
+    # 10 eps long); 0.5 degrees: the minimum is flat enough for the
+    # Gauss-point pairs alone (sampled_angle: 0.93 degrees at 10 eps)
     mesh, r = two_strands(np.radians(5.0), 1.2 * EPS)
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS)
+    assert cp.size == 1 and cp.beta[0] == pytest.approx(np.radians(5.0), rel=1e-9)
+    assert np.degrees(sampled_angle(H, EPS)) == pytest.approx(0.935, abs=1e-3)
+    mesh, r = two_strands(np.radians(0.5), 1.2 * EPS)
     assert crossing_pairs(mesh, r, EPS, np.pi * EPS).size == 0
 
 
@@ -203,3 +211,185 @@ def test_min_distance_on_a_closed_rod_does_not_depend_on_the_closure_point():
         assert arc_distance(md.s, md.s_bar, rod.length) >= np.pi * 0.05
         out.append(md.distance)
     assert np.ptp(out) < 1e-12 and out[0] < 2 * 0.05
+
+
+# -- all angles, all element sizes --------------------------------------------
+
+def crossing_scene(angle, h, span=80.0 * EPS, z0=1.5 * EPS, at=0.37):
+    """Strand A along x and strand B at ``angle`` to it in the plane
+    ``z0`` above, both ``span`` long in elements ``h`` long, crossing at
+    ``at`` of an element from their middle nodes (between Gauss points);
+    one long link element loops high above from A's end to B's start."""
+    n = int(round(span / h))
+    link = 10 * span
+    v = np.r_[np.arange(n + 1) * h, n * h + link + np.arange(n + 1) * h]
+    mesh = RodMesh(v[-1], 2 * n + 1, vertices=v)
+    r = np.zeros((mesh.n_nodes, 3))
+    t = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+    c = (n // 2 + at) * h
+    d = np.array([np.cos(angle), np.sin(angle), 0.0])
+    for e in range(n):
+        s = (e + t) * h - c
+        r[mesh.nodes[e]] = np.outer(s, [1.0, 0, 0])
+        r[mesh.nodes[n + 1 + e]] = np.outer(s, d) + [0, 0, z0]
+    a, b = r[mesh.nodes[n - 1, 1]], r[mesh.nodes[n + 1, 0]]
+    r[mesh.nodes[n, 2:]] = [a + [0, 0, 3 * span], b + [0, 0, 3 * span]]
+    return mesh, r
+
+
+def press(angle, h, k=1.0, mu_gp=1.0, mu_cp=0.2, tol=1e-3, max_uzawa=40):
+    """Springs (stiffness ``k`` per position dof) hold the strands of
+    :func:`crossing_scene` where they overlap by 0.5 eps; the contact of
+    the package -- Gauss-point pairs (:mod:`.search`, :mod:`.assembly`) and
+    crossing pairs with their held multipliers -- pushes them apart:
+    Newton (backtracking on the residual) at fixed multipliers, Uzawa
+    updates until every pair's gap is within ``tol`` eps.  Returns per
+    Uzawa pass (Newton iterations, true penetration / eps, pairs)."""
+    from skfem_rod.contact.assembly import contact_work
+    mesh, r_ref = crossing_scene(angle, h)
+    sl = slave_points(mesh, 3)
+    pos = (6 * np.arange(mesh.n_nodes)[:, None] + np.arange(3)).ravel()
+    r = r_ref.copy()
+    lam_gp = np.zeros(sl.s.size)
+    key, lam = np.zeros((0, 5)), np.zeros(0)
+
+    def evaluate(r):
+        pairs = search(mesh, r, sl, 3 * EPS, np.pi * EPS)
+        _, fg, Kg, _ = contact_work(mesh, r, pairs, lam_gp, mu_gp, EPS)
+        cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=(key, lam))
+        lc = carry(key, lam, cp.key)
+        _, fc, Kc, _ = crossing_work(mesh, r, cp, lc, mu_cp, EPS)
+        res = k * (r - r_ref).ravel() + (fg + fc)[pos]
+        K = (Kg + Kc).tocsc()[pos][:, pos] + k * sp.eye(pos.size)
+        return res, K, pairs, cp, lc
+
+    out = []
+    for _ in range(max_uzawa):
+        res, K, pairs, cp, lc = evaluate(r)
+        for it in range(40):
+            if np.abs(res).max() < 1e-10:
+                break
+            dr = spla.spsolve(K.tocsc(), res).reshape(-1, 3)
+            a = 1.0
+            for _ in range(20):          # the penalty law is only piecewise smooth
+                new = evaluate(r - a * dr)
+                if np.linalg.norm(new[0]) < np.linalg.norm(res):
+                    break
+                a *= 0.5
+            r = r - a * dr
+            res, K, pairs, cp, lc = new
+        dg, dc = law.gap(pairs.distance, EPS), law.gap(cp.distance, EPS)
+        out.append((it, min_distance(mesh, r, EPS, np.pi * EPS).penetration(EPS) / EPS,
+                    cp.size))
+        if max(dg.max(initial=0.0), dc.max(initial=0.0)) <= tol * EPS:
+            break
+        new_gp = np.zeros_like(lam_gp)
+        new_gp[pairs.slave] = law.uzawa_update(dg, lam_gp[pairs.slave], mu_gp)
+        lam_gp = new_gp
+        key, lam = cp.key, law.uzawa_update(dc, lc, mu_cp)
+    return out
+
+
+def test_pressed_crossing_fast():
+    """90 degrees, elements 5 eps: the overlap of 0.5 eps is pushed out to
+    a true penetration below 1e-3 eps."""
+    out = press(np.pi / 2, 5.0 * EPS)
+    assert out[0][1] > 0.01                   # the penalty alone lets it in
+    assert out[-1][1] <= 1e-3, out
+    assert all(o[0] < 39 for o in out)        # every Newton solve converged
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("h", [1.0, 5.0, 20.0])
+@pytest.mark.parametrize("degrees", [90, 45, 20, 10, 5])
+def test_pressed_crossing_any_angle_any_element_size(degrees, h):
+    """Crossing strands at 90 to 5 degrees, elements 1 to 20 eps long:
+    the true penetration (closest points, both parameters free) ends below
+    1e-3 eps, every Newton solve converging."""
+    out = press(np.radians(degrees), h * EPS)
+    assert out[-1][1] <= 1e-3, out
+    assert all(o[0] < 39 for o in out)
+
+
+# -- the new terms against finite differences ---------------------------------
+
+def _fd_check(mesh, r, held, seed=0, mu=0.1):
+    """Energy -> force -> tangent of the crossing pairs at ``r`` with the
+    held set ``held`` fixed (as within one Newton solve), central
+    differences along a random direction of the positions."""
+    rng = np.random.default_rng(seed)
+
+    def work(rr, tangent=True):
+        cp = crossing_pairs(mesh, rr, EPS, np.pi * EPS, held=held)
+        lam = carry(held[0], held[1], cp.key)
+        return cp, crossing_work(mesh, rr, cp, lam, mu, EPS, tangent)
+
+    cp, (E, f, K, fN) = work(r)
+    d = np.zeros(mesh.n_dofs)
+    d.reshape(-1, 6)[:, :3] = rng.normal(size=(mesh.n_nodes, 3))
+    shift = lambda t: r + t * d.reshape(-1, 6)[:, :3]          # noqa: E731
+    h = 1e-6
+    (cpp, (Ep, fp, _, _)), (cpm, (Em, fm, _, _)) = work(shift(h), False), work(shift(-h), False)
+    assert cpp.size == cpm.size == cp.size
+    assert abs((Ep - Em) / (2 * h) - f @ d) <= 1e-7 * abs(f @ d)
+    assert np.abs((fp - fm) / (2 * h) - K @ d).max() <= 1e-6 * np.abs(K @ d).max()
+    assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
+    return cp, fN
+
+
+def test_held_flat_minimum_energy_force_tangent():
+    """Near-parallel strands (0.5 degrees: below the threshold angle, no new
+    pair) whose minimum carries a multiplier: a point-to-curve pair from the
+    grid point nearest the minimum (u held, projection free)."""
+    mesh, r = two_strands(np.radians(0.5), 1.5 * EPS)
+    assert crossing_pairs(mesh, r, EPS, np.pi * EPS).size == 0
+    md = min_distance(mesh, r, EPS, np.pi * EPS)
+    held = (np.array([[md.s, md.s_bar, H, 0.0, -1.0]]), np.array([0.4]))
+    cp, fN = _fd_check(mesh, r, held)
+    assert cp.size == 1 and not cp.u_free[0] and cp.v_free[0] and fN[0] > 0
+    assert (cp.u[0] * 16) == pytest.approx(round(cp.u[0] * 16), abs=1e-12)   # a grid point
+    assert carry(held[0], held[1], cp.key)[0] == 0.4          # its own multiplier
+
+
+def test_held_pair_without_its_minimum_energy_force_tangent():
+    """A loaded pair whose minimum has gone (a key far from any minimum)
+    stays at its material point until its multiplier is released."""
+    mesh, r = two_strands(np.pi / 3, 1.5 * EPS, bend=0.05)
+    md = min_distance(mesh, r, EPS, np.pi * EPS)
+    held = (np.array([[md.s - 0.15 * H, md.s_bar + 1.5 * H, 0.1 * H, 0.0, -1.0]]),
+            np.array([0.4]))
+    cp, fN = _fd_check(mesh, r, held, seed=1)
+    assert cp.size == 2                               # the new minimum too
+    assert not cp.u_free[0] and cp.s[0] == pytest.approx(md.s - 0.15 * H)
+    released = (held[0], np.array([0.0]))
+    assert crossing_pairs(mesh, r, EPS, np.pi * EPS, held=released).size == 1
+
+
+def test_minimum_on_a_node_energy_force_tangent():
+    """Strand A bent at a node (a V pointing at strand B, crossing above the
+    node at 90 degrees): the minimum sits on the node (the kink of the C0
+    centreline holds it), found once, with u held and v free."""
+    mesh = RodMesh(4 * H, 4)
+    r = np.zeros((mesh.n_nodes, 3))
+    u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+    r[mesh.nodes[0]] = np.outer(u - 1, [H, 0, 0]) + np.outer(u, [0, 0, 0.5 * EPS])
+    r[mesh.nodes[1]] = np.outer(u, [H, 0, 0]) + np.outer(1 - u, [0, 0, 0.5 * EPS])
+    r[mesh.nodes[3]] = np.outer(u - 0.4, [0, H, 0]) + [0, 0, 2.2 * EPS]
+    r[mesh.nodes[2, 2:]] = [[H, 0, 3 * H], [0, -H, 3 * H]]
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS)
+    assert cp.size == 1 and not cp.u_free[0] and cp.v_free[0]
+    assert cp.s[0] == pytest.approx(H) and cp.distance[0] == pytest.approx(1.7 * EPS)
+    held = (cp.key, np.array([0.3]))
+    _fd_check(mesh, r + 1e-3 * EPS * np.random.default_rng(2).normal(size=r.shape), held)
+
+
+def test_carry_by_place():
+    """A minimum keeps its multiplier when it moves to another element
+    pair (within the carry radius), one old pair feeds one new pair, the
+    held index wins."""
+    old = np.array([[1.0, 5.0, 0.5, 0.1, -1], [3.0, 7.0, 0.5, 0.1, -1]])
+    lam = np.array([2.0, 3.0])
+    new = np.array([[1.2, 5.1, 0.5, 0.1, -1], [1.3, 5.0, 0.5, 0.1, -1],
+                    [9.0, 9.0, 0.5, 0.1, -1], [0.0, 0.0, 0.5, 0.1, 1]])
+    assert carry(old, lam, new).tolist() == [2.0, 0.0, 0.0, 3.0]
+    assert carry(np.zeros(0), np.zeros(0), new).tolist() == [0.0] * 4

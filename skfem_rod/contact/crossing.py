@@ -54,7 +54,8 @@ from scipy.spatial import cKDTree
 
 from ..element import shape_functions
 from .law import gap, normal_force, potential
-from .search import monomial_coefficients, curve_point, arclength_period, arc_distance
+from .search import (monomial_coefficients, curve_point, arclength_period, arc_distance,
+                     project)
 
 
 def _dot(a, b):
@@ -206,7 +207,9 @@ def _element_pairs(mesh, r, reach, exclusion, min_angle=None):
 
 @dataclass
 class CrossingPairs:
-    """Closest points of element pairs (``e < f``), one per pair."""
+    """Point-to-point contact pairs: strict local minima of the distance
+    between two strands, one per minimum (``e < f`` the elements holding
+    it; at a node, one of the element pairs sharing it)."""
     e: np.ndarray         # (m,) first element
     f: np.ndarray         # (m,) second element
     u: np.ndarray         # (m,) reference coordinate on e
@@ -216,7 +219,12 @@ class CrossingPairs:
     distance: np.ndarray  # (m,) |X(u) - Y(v)|
     normal: np.ndarray    # (m, 3) (X - Y) / distance
     cos_angle: np.ndarray # (m,) |t_e . t_f| at the closest points
-    key: np.ndarray       # (m,) e * n_elements + f
+    key: np.ndarray       # (m, 5) s, s_bar, carry radius, beta, held index (:func:`carry`)
+    u_free: np.ndarray = None   # (m,) u interior (free); False: at a node (held)
+    v_free: np.ndarray = None   # (m,) v interior
+    beta: np.ndarray = None     # (m,) effective angle of the minimum (radians)
+    length: np.ndarray = None   # (m,) |X(u) - Y(v)| of the acting pair (distance:
+                                # the Uzawa gap's, see crossing_pairs)
 
     @property
     def size(self):
@@ -278,31 +286,267 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
                        (float(out[2]), float(out[3])))
 
 
-def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(15.0)):
-    """Point-to-point contact pairs of crossing strands (see module doc)."""
-    reach = 3.0 * radius if reach is None else reach
-    e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion, min_angle)
+def slave_half_gap(n_slave):
+    """The largest arclength from a point of an element to its nearest
+    Gauss slave point, in element lengths (0.194 for the paper's three)."""
+    x = 0.5 * (np.polynomial.legendre.leggauss(n_slave)[0] + 1.0)
+    return float(max(x[0], 0.5 * np.diff(x).max(initial=0.0)))
+
+
+#: a point pair is added where the Gauss slave points could miss more than
+#: this fraction of the contact tolerance at a minimum (:func:`sampled_angle`)
+SAMPLING_SHARE = 0.25
+
+
+def sampled_angle(h, radius, n_slave=3, tolerance=1e-3):
+    """The effective angle ``beta_h`` below which the Gauss slave points of
+    elements ``h`` long sample a minimum of the strand distance to
+    ``SAMPLING_SHARE * tolerance * eps``.  Near a minimum of effective angle
+    ``beta`` the distance seen at arclength ``t`` from it along a strand is
+    ``2 eps + (t sin beta)^2 / (4 eps)``; ``t`` is at most
+    ``slave_half_gap * h``, so ``sin beta_h = 2 eps sqrt(share tol) /
+    (half_gap h)``."""
+    x = 2.0 * radius * np.sqrt(SAMPLING_SHARE * tolerance) / (slave_half_gap(n_slave) * h)
+    return np.arcsin(np.minimum(x, 1.0))
+
+
+def _node_minimum(C, e, u, G, ne, closed):
+    """For parameters on an element end: does ``F = |X - Y|^2 / 2`` also
+    grow into the neighbouring element (``G``: ``dF/du = G . X'``)?  The
+    closest point then sits on the node (a local minimum of the whole
+    strand, held there by the kink of the C0 centreline or a minimum at the
+    node itself); else the neighbour holds the minimum.  True where ``u``
+    is interior."""
+    ok = np.ones(e.size, bool)
+    for end, step in ((u >= 1.0, 1), (u <= 0.0, -1)):
+        k = np.flatnonzero(end)
+        nb = e[k] + step
+        if closed:
+            nb = np.mod(nb, ne)
+        inside = (nb >= 0) & (nb < ne)                     # the rod's ends: no minimum
+        nb = np.where(inside, nb, 0)
+        c = C[:, :, nb]
+        T = c[1] if step == 1 else c[1] + 2.0 * c[2] + 3.0 * c[3]
+        g = _dot(G[:, k], T)
+        small = 1e-12 * np.sqrt(_dot(G[:, k], G[:, k]) * _dot(T, T))
+        ok[k] = inside & ((g >= -small) if step == 1 else (g <= small))
+    return ok
+
+
+def _minima(mesh, r, radius, exclusion, reach):
+    """Strict local minima of the distance between strands: per minimum
+    the elements, parameters, arclengths, distance, ``D = X - Y``, the
+    free flags, ``sin^2 beta``, tangents' ``|cos|`` (one per minimum: a
+    node minimum is found from every element pair sharing the node)."""
+    e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion)
     u, v, s, s_bar, dist, C = _solve(mesh, e, f, r_el)
-    ok = (arc_distance(s, s_bar, arclength_period(mesh)) >= exclusion) & (dist > 0)
-    e, f, u, v, s, s_bar, dist = e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok]
-    X, X1, _ = curve_point(C[:, :, e], u)
-    Y, Y1, _ = curve_point(C[:, :, f], v)
-    cos = np.abs(_dot(X1, Y1)) / np.sqrt(_dot(X1, X1) * _dot(Y1, Y1))
-    ok = (u > 0) & (u < 1) & (v > 0) & (v < 1) & (dist < reach) & (cos < np.cos(min_angle))
-    N = ((X - Y) / dist).T
+    period = arclength_period(mesh)
+    ok = (arc_distance(s, s_bar, period) >= exclusion) & (dist > 0) & (dist < reach)
+    e, f, u, v, s, s_bar, dist = (a[ok] for a in (e, f, u, v, s, s_bar, dist))
+    X, X1, X2 = curve_point(C[:, :, e], u)
+    Y, Y1, Y2 = curve_point(C[:, :, f], v)
+    D = X - Y
     ne = mesh.nodes.shape[0]
-    return CrossingPairs(e[ok], f[ok], u[ok], v[ok], s[ok], s_bar[ok], dist[ok], N[ok], cos[ok],
-                         e[ok] * ne + f[ok])
+    closed = period is not None
+    ok = _node_minimum(C, e, u, D, ne, closed) & _node_minimum(C, f, v, -D, ne, closed)
+    fu, fv = (u > 0) & (u < 1), (v > 0) & (v < 1)
+    n1, n2 = _dot(X1, X1), _dot(Y1, Y1)
+    huu, hvv, huv = n1 + _dot(D, X2), n2 - _dot(D, Y2), -_dot(X1, Y1)
+    # effective angle: the strictness of the minimum in the free parameters
+    # (a parameter held on a node sits at a kink: strict)
+    both = fu & fv
+    sin2 = np.where(both, (huu * hvv - huv * huv) / np.maximum(huu * hvv, 1e-300),
+                    np.where(fu, huu / n1, np.where(fv, hvv / n2, 1.0)))
+    ok &= ~((fu & (huu <= 0)) | (fv & (hvv <= 0))) & (sin2 > 0)
+    vt = mesh.vertices
+    q = 1e-8 * float(np.mean(np.diff(vt)))
+    k = np.flatnonzero(ok)
+    if k.size:
+        order = np.lexsort((np.rint(s_bar[k] / q), np.rint(s[k] / q)))
+        k = k[order]
+        same = (np.abs(np.diff(s[k])) <= q) & (np.abs(np.diff(s_bar[k])) <= q)
+        k = np.sort(k[np.r_[True, ~same]])
+    cos = np.abs(_dot(X1, Y1)) / np.sqrt(n1 * n2)
+    return dict(e=e[k], f=f[k], u=u[k], v=v[k], s=s[k], s_bar=s_bar[k], distance=dist[k],
+                D=D[:, k].T, u_free=fu[k], v_free=fv[k], sin2=sin2[k], cos=cos[k])
+
+
+def _held_pairs(mesh, r, key, exclusion):
+    """The acting pairs of held minima: slave the material point ``X(s)``
+    of the key (held: ``u`` not free), master its projection on the
+    element of ``s_bar`` or a neighbour (the closest admissible)."""
+    vt, ne = mesh.vertices, mesh.nodes.shape[0]
+    period = arclength_period(mesh)
+    s0, sb0 = key[:, 0], key[:, 1]
+    e = np.clip(np.searchsorted(vt, s0, side="right") - 1, 0, ne - 1)
+    u = np.clip((s0 - vt[e]) / (vt[e + 1] - vt[e]), 0.0, 1.0)
+    N = shape_functions(u)[0].T                                     # (k, 4)
+    x = np.einsum("kI,kIc->kc", N, r[mesh.nodes[e]])
+    f0 = np.clip(np.searchsorted(vt, sb0, side="right") - 1, 0, ne - 1)
+    best = None
+    for step in (0, -1, 1):
+        f = f0 + step
+        f = np.mod(f, ne) if period is not None else np.clip(f, 0, ne - 1)
+        xi, interior = project(x, r[mesh.nodes[f]])
+        y = np.einsum("kI,kIc->kc", shape_functions(xi)[0].T, r[mesh.nodes[f]])
+        d = np.linalg.norm(x - y, axis=1)
+        sb = vt[f] + xi * (vt[f + 1] - vt[f])
+        d = np.where(arc_distance(s0, sb, period) >= exclusion, d, np.inf)
+        cand = (f, xi, interior, sb, d, x - y)
+        if best is None:
+            best = cand
+        else:
+            better = d < best[4]
+            best = tuple(np.where(better[:, None] if a.ndim == 2 else better, a, b)
+                         for a, b in zip(cand, best))
+    f, v, interior, sb, d, D = best
+    return dict(e=e, f=f, u=u, v=v, s=s0, s_bar=sb, distance=d, D=D,
+                u_free=np.zeros(e.size, bool), v_free=interior)
+
+
+#: grid points per element where a loaded flat minimum is held
+GRID = 16
+
+
+def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(15.0),
+                   n_slave=3, tolerance=1e-3, held=None):
+    """Point-to-point contact pairs at the strict local minima of the
+    distance between strands (see module doc and docs/crossing-contact.md).
+
+    *New minima.*  A strict local minimum of the distance along both whole
+    strands (interior stationary points, or a node where the distance grows
+    into both elements beside it), closer than ``reach`` and at least
+    ``exclusion`` apart in arclength, whose effective angle ``beta``
+    (``sin^2 beta = det F_pp / (F_uu F_vv)``: the angle of straight
+    strands; curvature counts) is at least ``min(min_angle, beta_h)``,
+    ``beta_h`` the angle below which the Gauss slave points hold a minimum
+    to the tolerance (:func:`sampled_angle`, smaller element length), is a
+    pair with both parameters free.  Flatter minima (near-parallel strands:
+    a line contact) are the Gauss-point pairs' job.
+
+    *Held minima.*  ``held = (key, multipliers)``, the pairs of the last
+    multiplier update (``Multipliers.crossing_key``, ``.crossing``): each
+    with a positive multiplier, or with a new minimum within its carry
+    radius, acts as a point-to-curve pair from the material point
+    ``X(s)`` of its key (held fixed during the solve) to the other strand
+    (projection free): smooth in the state, whatever the angle, and it does
+    not vanish while it carries a force.  Its reported ``distance`` (the
+    Uzawa gap) is the smaller of its own and that of the minimum it follows;
+    its key moves to that minimum, so the next multiplier update puts the
+    material point there.
+
+    Examples
+    --------
+    >>> from skfem_rod.mesh import RodMesh
+    >>> mesh = RodMesh(3.0, 3)
+    >>> r = np.zeros((mesh.n_nodes, 3))
+    >>> t = np.array([0.0, 1.0, 1 / 3, 2 / 3])[:, None]
+    >>> r[mesh.nodes[0]] = (t - 0.5) * [1.0, 0.0, 0.0]
+    >>> r[mesh.nodes[2]] = (t - 0.5) * [0.0, 1.0, 0.0] + [0.0, 0.0, 0.15]
+    >>> r[mesh.nodes[1, 2:]] = [[0.2, 0.2, 1.0], [0.0, 0.2, 1.0]]
+    >>> cp = crossing_pairs(mesh, r, 0.1, 0.3)
+    >>> cp.size, round(float(cp.distance[0]), 12), round(float(cp.u[0]), 12)
+    (1, 0.15, 0.5)
+    """
+    reach = 3.0 * radius if reach is None else reach
+    mn = _minima(mesh, r, radius, exclusion, reach)
+    vt = mesh.vertices
+    h_of = lambda e, f: np.maximum(vt[e + 1] - vt[e], vt[f + 1] - vt[f])   # noqa: E731
+    hmin = np.minimum(vt[mn["e"] + 1] - vt[mn["e"]], vt[mn["f"] + 1] - vt[mn["f"]])
+    beta_min = np.minimum(min_angle, sampled_angle(hmin, radius, n_slave, tolerance))
+    beta = np.arcsin(np.sqrt(np.clip(mn["sin2"], 0.0, 1.0)))
+    fresh = beta >= beta_min
+    mkey = np.c_[mn["s"], mn["s_bar"], h_of(mn["e"], mn["f"]), beta]
+    mn["length"], mn["beta"] = mn["distance"], beta
+    parts = []
+    old = np.zeros((0, 4)) if held is None else np.asarray(held[0], float)
+    if old.size and old.ndim == 2 and old.shape[1] >= 4:
+        lam = np.asarray(held[1], float)
+        # each held pair follows the nearest minimum within its radius (one
+        # to one, nearest first)
+        follow = np.full(old.shape[0], -1)
+        if mn["s"].size:
+            dist, j = cKDTree(mkey[:, :2]).query(old[:, :2], p=np.inf)
+            hit = np.flatnonzero(dist <= old[:, 2])
+            hit = hit[np.lexsort((dist[hit], j[hit]))]
+            hit = hit[np.r_[True, j[hit][1:] != j[hit][:-1]]] if hit.size else hit
+            follow[hit] = j[hit]
+        has = follow >= 0
+        fj = np.maximum(follow, 0)
+        act = (lam > 0) | (has & fresh[fj])
+        # sharp minima act at the minimum (both parameters free)
+        i = np.flatnonzero(act & has & fresh[fj])
+        fp = {n: a[follow[i]] for n, a in mn.items()}
+        fp["key"] = np.c_[mkey[follow[i]], i]
+        parts.append(fp)
+        # flat minima followed by a loaded pair: at the grid point nearest
+        # the minimum (GRID per element, held); a loaded pair whose minimum
+        # is gone: at its own material point until its multiplier is 0
+        i = np.flatnonzero(act & ~(has & fresh[fj]))
+        fl = follow[i]
+        at = old[i, :2].copy()
+        g = fl >= 0
+        eg = mn["e"][fl[g]]
+        ug = np.rint(mn["u"][fl[g]] * GRID) / GRID
+        at[g, 0] = vt[eg] + ug * (vt[eg + 1] - vt[eg])
+        at[g, 1] = mn["s_bar"][fl[g]]
+        hp = _held_pairs(mesh, r, at, exclusion)
+        ok = np.isfinite(hp["distance"]) & (hp["distance"] < reach) & (hp["distance"] > 0)
+        i, fl, hp = i[ok], fl[ok], {n: a[ok] for n, a in hp.items()}
+        hp["length"] = hp["distance"]
+        hp["distance"] = np.where(fl >= 0, np.minimum(hp["distance"], mn["distance"][fl]),
+                                  hp["distance"])
+        hp["beta"] = np.where(fl >= 0, beta[np.maximum(fl, 0)], 0.0)
+        hp["key"] = np.c_[np.where(fl[:, None] >= 0, mkey[np.maximum(fl, 0)],
+                                   np.c_[old[i, :3], np.zeros(i.size)]), i]
+        parts.append(hp)
+        fresh[follow[has]] = False
+    k = np.flatnonzero(fresh)
+    new = {n: a[k] for n, a in mn.items()}
+    new["key"] = np.c_[mkey[k], np.full(k.size, -1.0)]
+    parts.append(new)
+    cat = lambda n: np.concatenate([p[n] for p in parts])                   # noqa: E731
+    e, f, u, v = cat("e"), cat("f"), cat("u"), cat("v")
+    length = cat("length")
+    D = np.concatenate([p["D"].reshape(-1, 3) for p in parts])
+    C = monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
+    X1 = curve_point(C[:, :, e], u)[1]
+    Y1 = curve_point(C[:, :, f], v)[1]
+    cos = np.abs(_dot(X1, Y1)) / np.sqrt(_dot(X1, X1) * _dot(Y1, Y1))
+    return CrossingPairs(e, f, u, v, cat("s"), cat("s_bar"), cat("distance"),
+                         D / length[:, None], cos, np.concatenate([p["key"] for p in parts]),
+                         cat("u_free"), cat("v_free"), cat("beta"), length)
 
 
 def carry(old_key, old_lam, new_key):
-    """Multipliers of the new pairs: the old ones of the same element pair,
-    0 for new element pairs."""
-    lam = np.zeros(new_key.size)
-    if old_key.size:
-        j = np.minimum(np.searchsorted(old_key, new_key), old_key.size - 1)
-        hit = old_key[j] == new_key
-        lam[hit] = old_lam[j[hit]]
+    """Multipliers of the new pairs: for a pair of a held minimum (its
+    key's 4th entry, the index of the held pair) the held multiplier; else
+    that of the nearest old pair (in ``(s, s_bar)``, max norm) within the
+    new pair's carry radius (the longer of its two elements; each old pair
+    to at most one new pair, the nearest), 0 for new minima.  Keyed by
+    place, not by element pair: a minimum moving across a node keeps its
+    multiplier."""
+    new_key = np.asarray(new_key, dtype=float)
+    new_key = new_key.reshape(-1, new_key.shape[-1]) if new_key.size else np.zeros((0, 3))
+    lam = np.zeros(new_key.shape[0])
+    old_key = np.asarray(old_key, dtype=float)
+    if old_key.size == 0 or new_key.shape[0] == 0:
+        return lam
+    old_lam = np.asarray(old_lam, float)
+    old_key = old_key.reshape(-1, old_key.shape[-1])
+    idx = new_key[:, 4].astype(np.int64) if new_key.shape[1] > 4 else np.full(lam.size, -1)
+    direct = (idx >= 0) & (idx < old_lam.size)
+    lam[direct] = old_lam[idx[direct]]
+    rest = np.flatnonzero(~direct & (idx < 0))
+    taken = np.zeros(old_lam.size, bool)
+    taken[idx[direct]] = True
+    if rest.size:
+        dist, j = cKDTree(old_key[:, :2]).query(new_key[rest, :2], p=np.inf)
+        ok = (dist <= new_key[rest, 2]) & ~taken[np.minimum(j, old_lam.size - 1)]
+        hit = np.flatnonzero(ok)
+        hit = hit[np.lexsort((dist[hit], j[hit]))]
+        hit = hit[np.r_[True, j[hit][1:] != j[hit][:-1]]] if hit.size else hit
+        lam[rest[hit]] = old_lam[j[hit]]
     return lam
 
 
@@ -316,7 +560,8 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     m = pairs.size
     if m == 0:
         return 0.0, np.zeros(n), (sp.csc_matrix((n, n)) if tangent else None), np.zeros(0)
-    d = gap(pairs.distance, radius)
+    l = pairs.distance if pairs.length is None else pairs.length
+    d = gap(l, radius)
     fN, dfN = normal_force(d, lam, mu)
     energy = float(np.sum(potential(d, lam, mu)))
     Nu, dNu, d2Nu = (a.T for a in shape_functions(pairs.u))       # (m, 4)
@@ -324,7 +569,6 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     re, rf = r[mesh.nodes[pairs.e]], r[mesh.nodes[pairs.f]]       # (m, 4, 3)
     X1, X2 = np.einsum("mk,mkc->mc", dNu, re), np.einsum("mk,mkc->mc", d2Nu, re)
     Y1, Y2 = np.einsum("mk,mkc->mc", dNv, rf), np.einsum("mk,mkc->mc", d2Nv, rf)
-    l = pairs.distance
     D = pairs.normal * l[:, None]
     z = np.zeros((m, 4))
     aD = np.concatenate([Nu, -Nv], axis=1)                        # (m, 8): delta D
@@ -343,6 +587,15 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     Fpp[:, 0, 0] = np.sum(X1 * X1 + D * X2, axis=1)
     Fpp[:, 1, 1] = np.sum(Y1 * Y1 - D * Y2, axis=1)
     Fpp[:, 0, 1] = Fpp[:, 1, 0] = -np.sum(X1 * Y1, axis=1)
+    # a parameter held on a node (the kink of the C0 centreline) does not
+    # move: its row of F_pq goes and F_pp gets a unit row and column
+    for k, free in ((0, pairs.u_free), (1, pairs.v_free)):
+        if free is not None:
+            held = ~np.asarray(free, bool)
+            Fpq[held, k] = 0.0
+            Fpp[held, k, :] = 0.0
+            Fpp[held, :, k] = 0.0
+            Fpp[held, k, k] = 1.0
     Fqq = (aD[:, :, None, None, None] * aD[:, None, None, :, None]
            * np.eye(3)[None, None, :, None, :]).reshape(m, 24, 24)
     H = Fqq - np.swapaxes(Fpq, 1, 2) @ np.linalg.solve(Fpp, Fpq)   # reduced Hessian of F
