@@ -21,47 +21,14 @@ The force scale is :meth:`skfem_rod.problem.Problem.force_scale`: loads on
 the free dofs and the forces the supports take up, never a load that acts
 on a supported dof (that one cannot decide convergence).
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .kinematics import ElementRotationError
-from .problem import Evaluation, clearance_ok
-
-
-#: a position correction follows a Newton update that raised the residual
-#: norm by more than this factor (:func:`position_correction`)
-CORRECT_ABOVE = 10.0
-
-
-@dataclass
-class Report:
-    """What a solve of one step did: Newton's part, filled in by the outer
-    loops (augmented Lagrangian, load stepping, gradient flow) with theirs."""
-    converged: bool
-    iterations: int = 0
-    history: list = field(default_factory=list)
-    reason: str = ""
-    evaluation: Evaluation = None
-    # augmented-Lagrangian loop (contact on)
-    uzawa: int = 0
-    newton_total: int = 0
-    penetration: float = 0.0
-    min_distance: float = None
-    min_distance_at: tuple = None
-    uzawa_converged: bool = True
-    uzawa_note: str = ""
-    friction_moved: float = 0.0
-    # generalized Newton (skfem_rod.nonsmooth): |C| per iteration and the
-    # iteration from which the multipliers were held
-    complementarity: list = None
-    polished_from: int = None
-    step_lengths: list = None
-    penalty_scale: float = 1.0
-    # load stepping and gradient flow
-    flow_steps: int = 0
-    relaxed: bool = False
-    lowest_eigenvalue: float = None
+# Report, the position correction and its threshold live in problem.py
+# (the generalized Newton of nonsmooth.py uses them too); re-exported here
+from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
 
 
 @dataclass
@@ -118,43 +85,6 @@ def safeguarded_update(problem, r, R, lam, dy, dl, opts, bound, rn):
             return (r_t, R_t, ev_t), alpha, ""
         alpha *= 0.5
     return None, alpha, why
-
-
-def position_correction(problem, r, R, lam, ev):
-    """One Newton step on the positions alone, rotations held: ``K_rr dr =
-    -G_r``.  Returns the corrected ``(r, evaluation)``, or the given ones
-    when the correction does not lower the residual.
-
-    At fixed rotations the internal energy is quadratic in the positions
-    (the strains ``v = Lambda^T rho'`` are linear in them, kinematics.py),
-    so this step puts the positions where the rotations want them.  A Newton
-    update of a slender rod gets the rotations nearly right but moves the
-    positions along the linearized tangents: the O(theta^2) stretch it
-    leaves is stiff (EA/EI ~ 1/eps^2) and raises the residual by orders of
-    magnitude (a roll-up by pi/2 per step: 0.12 -> 2000), after which plain
-    Newton wanders for 20 iterations.  It is applied after an update that
-    raised the residual more than :data:`CORRECT_ABOVE` times: never in the
-    quadratic regime, where the residual falls.
-    For dead and follower loads, the only loads that depend on the
-    configuration act through the rotations, so the step is exact for the
-    internal work and the loads; contact enters through its tangent."""
-    try:
-        dr = problem.factor(ev.tangent, fixed=problem.not_position)(-ev.residual)
-    except RuntimeError:
-        return r, ev
-    dr = problem.to_spatial(dr).reshape(-1, 6)[:, :3]
-    if not np.all(np.isfinite(dr)):
-        return r, ev
-    r_c = r + dr
-    if problem.contact is not None and not clearance_ok(problem.rod, r, r_c):
-        return r, ev
-    try:
-        ev_c = problem.evaluate(r_c, R, lam)
-    except ElementRotationError:
-        return r, ev
-    if problem.residual_norm(ev_c) < problem.residual_norm(ev):
-        return r_c, ev_c
-    return r, ev
 
 
 def _fail(r, R, lam, history, it, reason, ev=None):

@@ -56,8 +56,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .contact.law import gap
 from .kinematics import ElementRotationError
-from .newton import CORRECT_ABOVE, position_correction
-from .problem import clearance_ok
+from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction
 
 #: Armijo's sufficient decrease of the merit |(G, C)| per unit step
 ARMIJO = 1e-4
@@ -164,13 +163,17 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     kill = fixed[rows] | fixed[cols]
     K.data[kill] = 0.0
     K.data[kill & (rows == cols)] = 1.0
-    K_yl = cs.K_yl.tocsr(copy=True)
-    K_yl = sp.diags(np.where(fixed, 0.0, 1.0)) @ K_yl
-    K_ly = cs.K_ly.tocsc(copy=True) @ sp.diags(np.where(fixed, 0.0, 1.0))
-    A = sp.bmat([[K, K_yl], [K_ly, sp.diags(cs.D)]], format="csc")
+    # the inactive rows are -w dlambda = -C alone (no dy, no column in G):
+    # dlambda = -lambda there; the active multipliers join the system
+    act = np.flatnonzero(cs.active)
+    dl = -cs.C / cs.D
+    free = sp.diags(np.where(fixed, 0.0, 1.0))
+    K_yl = free @ cs.K_yl.tocsc()[:, act]
+    K_ly = cs.K_ly.tocsr()[act] @ free
+    A = sp.bmat([[K, K_yl], [K_ly, sp.diags(cs.D[act])]], format="csc")
     rhs_y = -cs.G - ev.tangent @ remaining
     rhs_y[fixed] = 0.0
-    rhs_l = -cs.C - cs.K_ly @ remaining
+    rhs_l = -cs.C[act] - cs.K_ly.tocsr()[act] @ remaining
     t0 = time.perf_counter()
     # the band ordering of Problem.factor (contact couples distant stretches
     # of the rod); SuperLU's partial pivoting takes the zero diagonal of
@@ -183,11 +186,11 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     x[p] = lu.solve(np.concatenate([rhs_y, rhs_l])[p])
     dy = x[:n]
     dy[fixed] = remaining[fixed]
-    return dy, x[n:]
+    dl[act] = x[n:]
+    return dy, dl
 
 
 def _fail(r, R, lam, history, it, reason, ev=None):
-    from .newton import Report
     return r, R, lam, Report(False, iterations=it, history=history, reason=reason,
                              evaluation=ev)
 
@@ -201,7 +204,6 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
     ``report.polished_from`` the iteration from which the multipliers were
     held (the contact tolerances met; None if never), ``report.step_lengths``
     the line search's ``alpha`` per iteration."""
-    from .newton import Report
     c, m = problem.contact, problem.multipliers
     n = problem.mesh.n_dofs
     remaining = np.zeros(n) if prescribed is None else prescribed.copy()
@@ -272,6 +274,8 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
                          ev)
         r, R, ev, lam_N = accepted
         m.normal = lam_N
+        if ev.tangent is None:
+            ev = problem.evaluate(r, R, lam)
         alphas.append(alpha)
         upd = (alpha * dy).reshape(-1, 6)
         last_update = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max(),
@@ -306,6 +310,7 @@ def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first
     spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
     if opts.line_search:
         alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+    alpha0 = alpha
     bound = opts.max_growth * max(reference, scale)
     best = None
     cap = opts.clearance_cap
@@ -318,10 +323,14 @@ def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first
                 alpha *= 0.5
                 continue
             m.normal = lam_t
-            ev_t = problem.evaluate(r_t, R_t, lam)
+            # the first trial is usually taken: its tangent is the next
+            # iteration's; halved trials get theirs once taken
+            ev_t = problem.evaluate(r_t, R_t, lam, tangent=alpha == alpha0)
             mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
             if np.isfinite(mt) and opts.position_correction and mt > CORRECT_ABOVE * merit:
-                # as plain Newton (skfem_rod.newton.position_correction)
+                # as plain Newton (skfem_rod.problem.position_correction)
+                if ev_t.tangent is None:
+                    ev_t = problem.evaluate(r_t, R_t, lam)
                 r_t, ev_t = position_correction(problem, r_t, R_t, lam, ev_t)
                 mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
         except ElementRotationError as err:
