@@ -393,3 +393,11 @@ def test_carry_by_place():
                     [9.0, 9.0, 0.5, 0.1, -1], [0.0, 0.0, 0.5, 0.1, 1]])
     assert carry(old, lam, new).tolist() == [2.0, 0.0, 0.0, 3.0]
     assert carry(np.zeros(0), np.zeros(0), new).tolist() == [0.0] * 4
+
+
+def test_held_pairs_without_any_minimum_in_reach():
+    """Strands far apart: a loaded held pair finds nothing within reach and
+    goes (no pair, no error)."""
+    mesh, r = two_strands(np.pi / 2, 10 * EPS)
+    held = (np.array([[3.0, 23.0, H, 1.0, -1.0]]), np.array([0.5]))
+    assert crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held).size == 0

@@ -472,17 +472,18 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(
             hit = hit[np.r_[True, j[hit][1:] != j[hit][:-1]]] if hit.size else hit
             follow[hit] = j[hit]
         has = follow >= 0
-        fj = np.maximum(follow, 0)
-        act = (lam > 0) | (has & fresh[fj])
+        sharp = np.zeros(old.shape[0], bool)
+        sharp[has] = fresh[follow[has]]
+        act = (lam > 0) | sharp
         # sharp minima act at the minimum (both parameters free)
-        i = np.flatnonzero(act & has & fresh[fj])
+        i = np.flatnonzero(sharp)
         fp = {n: a[follow[i]] for n, a in mn.items()}
         fp["key"] = np.c_[mkey[follow[i]], i]
         parts.append(fp)
         # flat minima followed by a loaded pair: at the grid point nearest
         # the minimum (GRID per element, held); a loaded pair whose minimum
         # is gone: at its own material point until its multiplier is 0
-        i = np.flatnonzero(act & ~(has & fresh[fj]))
+        i = np.flatnonzero(act & ~sharp)
         fl = follow[i]
         at = old[i, :2].copy()
         g = fl >= 0
