@@ -39,11 +39,14 @@ GJ = B / 1.3
 EA = 1e4
 
 
-def build(rho=1.0, delta=0.4, radius=0.02, force=30.0, n_elements=48, penalty_factor=1.0):
+def build(rho=1.0, delta=0.4, radius=0.02, force=30.0, n_elements=48, penalty_factor=1.0,
+          crossing=False):
     """The open ring, both ends clamped, squeezed by ``force`` (in units of
     ``B / rho^2``) at the quarter points, perpendicular to its symmetry
     axis.  ``n_elements`` must be a multiple of 4 (nodes at the quarter
-    points)."""
+    points).  ``crossing``: point pairs at the closest points of the
+    strands too (docs/crossing-contact.md), which hold the touching sides
+    to the tolerance between slave points."""
     if n_elements % 4:
         raise ValueError(f"n_elements must be a multiple of 4, got {n_elements}")
     angle = 2 * np.pi - delta
@@ -58,7 +61,8 @@ def build(rho=1.0, delta=0.4, radius=0.02, force=30.0, n_elements=48, penalty_fa
     F = force * B / rho ** 2
     rod.add_force(L / 4, F * u)
     rod.add_force(3 * L / 4, -F * u)
-    rod.enable_contact(radius=radius, penalty=penalty_factor * 10 * radius ** 4 / B)
+    rod.enable_contact(radius=radius, penalty=penalty_factor * 10 * radius ** 4 / B,
+                       crossing=crossing)
     return rod
 
 
