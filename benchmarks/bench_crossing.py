@@ -20,7 +20,8 @@ evaluation the wall time of the evaluation, of the crossing part
 Gauss-point search; medians.  The machine is shared (2 cores, 4 users):
 wall times swing; ratios within one run are what to read.
 
-    .venv/bin/python benchmarks/bench_crossing.py [--repeat 15] [--out benchmarks/RESULTS_crossing.md]
+    .venv/bin/python benchmarks/bench_crossing.py [--repeat 15] \
+        [--out benchmarks/RESULTS_crossing.md]
 """
 import argparse
 import pathlib

@@ -238,46 +238,57 @@ def crossing_scene(angle, h, span=80.0 * EPS, z0=1.5 * EPS, at=0.37):
 
 
 def press(angle, h, k=1.0, mu_gp=1.0, mu_cp=0.2, tol=1e-3, max_uzawa=40):
-    """Springs (stiffness ``k`` per position dof) hold the strands of
-    :func:`crossing_scene` where they overlap by 0.5 eps; the contact of
-    the package -- Gauss-point pairs (:mod:`.search`, :mod:`.assembly`) and
-    crossing pairs with their held multipliers -- pushes them apart:
-    Newton (backtracking on the residual) at fixed multipliers, Uzawa
-    updates until every pair's gap is within ``tol`` eps.  Returns per
-    Uzawa pass (Newton iterations, true penetration / eps, pairs)."""
+    """The strands of :func:`crossing_scene` overlap by 0.5 eps; each moves
+    as a rigid body (a translation) held by a spring of stiffness ``k`` to
+    that place (so they stay straight: the geometry of the crossing is
+    exact at any element size).  The contact of the package -- Gauss-point
+    pairs (:mod:`.search`, :mod:`.assembly`) and crossing pairs with their
+    held multipliers -- pushes them apart: Newton (backtracking on the
+    residual) at fixed multipliers, Uzawa updates until every pair's gap is
+    within ``tol`` eps.  Returns per Uzawa pass (Newton iterations, true
+    penetration / eps, crossing pairs)."""
     from skfem_rod.contact.assembly import contact_work
     mesh, r_ref = crossing_scene(angle, h)
+    n = (mesh.nodes.shape[0] - 1) // 2
     sl = slave_points(mesh, 3)
     pos = (6 * np.arange(mesh.n_nodes)[:, None] + np.arange(3)).ravel()
-    r = r_ref.copy()
+    # positions = r_ref + P @ (T_A, T_B): the strands' translations
+    body = np.full(mesh.n_nodes, -1)
+    body[np.unique(mesh.nodes[:n])] = 0
+    body[np.unique(mesh.nodes[n + 1:])] = 1
+    rows = (3 * np.flatnonzero(body >= 0)[:, None] + np.arange(3)).ravel()
+    cols = (3 * np.repeat(body[body >= 0], 3).reshape(-1, 3) + np.arange(3)).ravel()
+    P = sp.csc_matrix((np.ones(rows.size), (rows, cols)), shape=(pos.size, 6))
+    T = np.zeros(6)
     lam_gp = np.zeros(sl.s.size)
     key, lam = np.zeros((0, 5)), np.zeros(0)
 
-    def evaluate(r):
+    def evaluate(T):
+        r = r_ref + (P @ T).reshape(-1, 3)
         pairs = search(mesh, r, sl, 3 * EPS, np.pi * EPS)
         _, fg, Kg, _ = contact_work(mesh, r, pairs, lam_gp, mu_gp, EPS)
         cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=(key, lam))
         lc = carry(key, lam, cp.key)
         _, fc, Kc, _ = crossing_work(mesh, r, cp, lc, mu_cp, EPS)
-        res = k * (r - r_ref).ravel() + (fg + fc)[pos]
-        K = (Kg + Kc).tocsc()[pos][:, pos] + k * sp.eye(pos.size)
-        return res, K, pairs, cp, lc
+        res = k * T + P.T @ (fg + fc)[pos]
+        K = (P.T @ (Kg + Kc).tocsc()[pos][:, pos] @ P).toarray() + k * np.eye(6)
+        return res, K, pairs, cp, lc, r
 
     out = []
     for _ in range(max_uzawa):
-        res, K, pairs, cp, lc = evaluate(r)
+        res, K, pairs, cp, lc, r = evaluate(T)
         for it in range(40):
             if np.abs(res).max() < 1e-10:
                 break
-            dr = spla.spsolve(K.tocsc(), res).reshape(-1, 3)
+            dT = np.linalg.solve(K, res)
             a = 1.0
-            for _ in range(20):          # the penalty law is only piecewise smooth
-                new = evaluate(r - a * dr)
+            for _ in range(30):          # the penalty law is only piecewise smooth
+                new = evaluate(T - a * dT)
                 if np.linalg.norm(new[0]) < np.linalg.norm(res):
                     break
                 a *= 0.5
-            r = r - a * dr
-            res, K, pairs, cp, lc = new
+            T = T - a * dT
+            res, K, pairs, cp, lc, r = new
         dg, dc = law.gap(pairs.distance, EPS), law.gap(cp.distance, EPS)
         out.append((it, min_distance(mesh, r, EPS, np.pi * EPS).penetration(EPS) / EPS,
                     cp.size))
@@ -401,3 +412,29 @@ def test_held_pairs_without_any_minimum_in_reach():
     mesh, r = two_strands(np.pi / 2, 10 * EPS)
     held = (np.array([[3.0, 23.0, H, 1.0, -1.0]]), np.array([0.5]))
     assert crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held).size == 0
+
+
+@pytest.mark.slow
+def test_figure_eight_pressed_past_the_old_stall():
+    """The figure-eight of tests/test_core.py (strands crossing at 90
+    degrees, elements 9 eps, pressed together by point forces), crossing
+    contact on, plain load stepping: every step holds the true penetration
+    to the tolerance, and the path goes far beyond load factor 0.22 (where
+    the pairs keyed by element pair stalled: the minimum crossed a node and
+    lost its multiplier).  It ends near 0.72, where the pressed strands roll
+    over each other (the tangent's lowest eigenvalue turns negative: load
+    control cannot pass; docs/crossing-contact.md)."""
+    from test_core import _figure_eight
+    eps = 0.01
+    shape, (s1, s2) = _figure_eight(eps, 3 * eps)
+    rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
+    rod.clamp("start").clamp("end")
+    sn = rod.mesh.s_nodes
+    rod.add_force(float(sn[np.argmin(abs(sn - s1))]), [0.0, 0.0, -2.0])
+    rod.add_force(float(sn[np.argmin(abs(sn - s2))]), [0.0, 0.0, 2.0])
+    rod.enable_contact(crossing=True)
+    res = rod.solve(4)
+    for st in res.steps:
+        md = min_distance(rod.mesh, st.r, eps, rod.contact.exclusion)
+        assert md.penetration(eps) <= rod.contact.tolerance * eps
+    assert res.steps[-1].load_factor > 0.7

@@ -1,7 +1,7 @@
 r"""Curve-to-curve contact of crossing strands: the true minimum distance
-between strands and point-to-point contact pairs at the closest points of
-crossing elements (Meier, Popp & Wall 2016: all-angle beam contact, the
-point-to-point part).
+between strands and point-to-point contact pairs at the minima of the
+strand distance (after Meier, Popp & Wall 2016-2017: all-angle beam
+contact, its point-to-point part).
 
 Point-to-curve pairs at Gauss slave points (the paper's, :mod:`.search`)
 miss strands that cross between two slave points: with elements several
@@ -22,25 +22,27 @@ excluded arclength (periodic on a closed rod) go before they are solved,
 closest points closer than ``exclusion`` in arclength are dropped (as in
 :mod:`.search`).  :func:`min_distance` solves the pairs in order of their
 lower bound and stops at the closest admissible distance found (branch and
-bound); :func:`crossing_pairs` also drops pairs whose chords and tangent
-bounds keep them near-parallel everywhere.
+bound).  The design (thresholds, held pairs, why) is docs/crossing-contact.md.
 
 * :func:`min_distance`: the smallest distance between non-neighbouring
   strands, with its arclengths (``s, s_bar``): the true penetration
   ``2 eps - distance`` of a state, whatever the slave density.
-* :func:`crossing_pairs`: element pairs whose closest points are interior
-  to both elements (a stationary point), closer than ``reach``, and whose
-  tangents there are not near-parallel (angle above ``min_angle``: nearly
-  parallel strands are resolved by the Gauss-point pairs, whose closest
-  point of two curves is ill-conditioned); one contact pair each, keyed by
-  the element pair (``key = e * n_elements + f``, ``e < f``) so that the
-  multipliers can be carried (:func:`carry`).
+* :func:`crossing_pairs`: a point pair at every strict local minimum of
+  the strand distance (interior, or on a node held by the kink of the C0
+  centreline) whose effective angle is above the angle the Gauss slave
+  points sample to the tolerance (:func:`sampled_angle`), both parameters
+  free; minima that carry a multiplier (``held``) keep acting below it, at
+  the grid point nearest the minimum (a point-to-curve pair), and where the
+  minimum is gone at their material point, until the multiplier is
+  released.  Multipliers are carried by place, ``(s, s_bar)``
+  (:func:`carry`), not by element pair.
 * :func:`crossing_work`: a point force at the pair, gap
   ``d = 2 eps - |X(u) - Y(v)|`` and the augmented-Lagrangian law of
   :mod:`.law` (``f = [d + mu lambda]_+ / mu``, a force, ``mu`` a compliance
-  per unit force), energy ``phi(d)``; residual and exact tangent with both
-  parameters free (the closest-point conditions differentiated: the
-  reduced Hessian ``F_qq - F_qp F_pp^{-1} F_pq`` of ``F = l^2 / 2``).
+  per unit force), energy ``phi(d)``; residual and exact tangent with the
+  free parameters' closest-point conditions differentiated (the reduced
+  Hessian ``F_qq - F_qp F_pp^{-1} F_pq`` of ``F = l^2 / 2``; a held
+  parameter does not move).
 
 A crossing pair and Gauss-point pairs can act at one crossing together:
 redundant constraints of the same gap, which the augmented Lagrangian
@@ -167,21 +169,21 @@ def _bounds(r_el):
     return np.ascontiguousarray(p0.T), np.ascontiguousarray(p1.T), dev, alpha
 
 
-def _element_pairs(mesh, r, reach, exclusion, min_angle=None):
+def _element_pairs(mesh, r, reach, exclusion):
     """Candidate element pairs ``(e, f)``, ``e < f``, with a lower bound
     ``lb`` of their distance below ``reach`` (chord-to-chord distance minus
     both deviation bounds), not wholly inside each other's excluded
-    arclength; with ``min_angle``, also not near-parallel everywhere (chord
-    angle plus both tangent-deviation bounds below it)."""
+    arclength."""
     r_el = r[mesh.nodes]
-    P0, P1, dev, alpha = _bounds(r_el)
+    P0, P1, dev, _ = _bounds(r_el)
     centre = 0.5 * (P0 + P1).T
     rad = 0.5 * np.sqrt(_dot(P1 - P0, P1 - P0)) + dev
     P = cKDTree(centre).query_pairs(2 * rad.max() + reach, output_type="ndarray")
     none = np.zeros(0, dtype=np.int64)
     if P.size == 0:
         return none, none, np.zeros(0), r_el
-    e, f = np.minimum(P[:, 0], P[:, 1]).astype(np.int64), np.maximum(P[:, 0], P[:, 1]).astype(np.int64)
+    e = np.minimum(P[:, 0], P[:, 1]).astype(np.int64)
+    f = np.maximum(P[:, 0], P[:, 1]).astype(np.int64)
     keep = np.linalg.norm(centre[e] - centre[f], axis=1) - rad[e] - rad[f] < reach
     e, f = e[keep], f[keep]
     v, period = mesh.vertices, arclength_period(mesh)
@@ -198,10 +200,6 @@ def _element_pairs(mesh, r, reach, exclusion, min_angle=None):
     e, f = e[~inside], f[~inside]
     lb = _segment_pairs(P0[:, e], P1[:, e], P0[:, f], P1[:, f]) - dev[e] - dev[f]
     keep = lb < reach
-    if min_angle is not None:
-        de, df = P1[:, e] - P0[:, e], P1[:, f] - P0[:, f]
-        cos = np.abs(_dot(de, df)) / np.sqrt(_dot(de, de) * _dot(df, df))
-        keep &= np.arccos(np.minimum(cos, 1.0)) + alpha[e] + alpha[f] >= min_angle
     return e[keep], f[keep], lb[keep], r_el
 
 
