@@ -229,3 +229,28 @@ def test_rotational_friction_scene_obeys_coulomb_and_converges_fast(monkeypatch)
     for st in res.steps[1:]:
         assert st.contact.penetration <= 1e-3 * rf.EPS
     assert _check_quadratic(reps, 1e-8) >= 5
+
+
+@pytest.mark.slow
+def test_monotone_line_search_stops_the_stick_slip_two_cycle(monkeypatch):
+    """The rotational-friction scene 2-cycled at a stick/slip switch with a
+    non-monotone line search (Armijo against the largest merit of the last
+    4 iterates: 8.6e-3 <-> 4.3e-3 for 6 iterations, each return a hair
+    below the memory's maximum), in the variant that polished from
+    ``|G| <= 1e-6`` and had no escapes (the cycle is checked there); with
+    the monotone test (the default, ``MEMORY = 1``) no solve of the same
+    variant cycles, and it converges."""
+    from helpers import load_demo
+    rf = load_demo("rotational_friction")
+    found = {}
+    for memory in (4, 1):
+        monkeypatch.setattr(nonsmooth, "MEMORY", memory)
+        monkeypatch.setattr(nonsmooth, "POLISH_BELOW", 1e-6)
+        monkeypatch.setattr(nonsmooth, "ESCAPES", 0)
+        rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+        res, reps = _histories(rod, "newton", monkeypatch, n_steps=8)
+        assert res.converged, res.message
+        found[memory] = sum(bool(two_cycles(r.history, 1e-8)) for r in reps)
+        monkeypatch.undo()
+    assert found[4] >= 1
+    assert found[1] == 0
