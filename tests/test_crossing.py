@@ -438,3 +438,13 @@ def test_figure_eight_pressed_past_the_old_stall():
         md = min_distance(rod.mesh, st.r, eps, rod.contact.exclusion)
         assert md.penetration(eps) <= rod.contact.tolerance * eps
     assert res.steps[-1].load_factor > 0.7
+
+
+@pytest.mark.parametrize("kwargs, name", [(dict(h=0.0), "h"), (dict(radius=-1.0), "radius"),
+                                          (dict(tolerance=0.0), "tolerance"),
+                                          (dict(n_slave=0), "n_slave")])
+def test_sampled_angle_bad_input(kwargs, name):
+    args = dict(h=1.0, radius=0.1, n_slave=3, tolerance=1e-3)
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=name):
+        sampled_angle(**args)

@@ -287,6 +287,8 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
 def slave_half_gap(n_slave):
     """The largest arclength from a point of an element to its nearest
     Gauss slave point, in element lengths (0.194 for the paper's three)."""
+    if isinstance(n_slave, bool) or not (isinstance(n_slave, (int, np.integer)) and n_slave >= 1):
+        raise ValueError(f"n_slave must be an integer >= 1, got {n_slave!r}")
     x = 0.5 * (np.polynomial.legendre.leggauss(n_slave)[0] + 1.0)
     return float(max(x[0], 0.5 * np.diff(x).max(initial=0.0)))
 
@@ -304,6 +306,12 @@ def sampled_angle(h, radius, n_slave=3, tolerance=1e-3):
     ``2 eps + (t sin beta)^2 / (4 eps)``; ``t`` is at most
     ``slave_half_gap * h``, so ``sin beta_h = 2 eps sqrt(share tol) /
     (half_gap h)``."""
+    for name, v in (("radius", radius), ("tolerance", tolerance)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    h = np.asarray(h, dtype=float)
+    if not np.all(np.isfinite(h) & (h > 0)):
+        raise ValueError(f"element lengths h must be finite and > 0, got {h!r}")
     x = 2.0 * radius * np.sqrt(SAMPLING_SHARE * tolerance) / (slave_half_gap(n_slave) * h)
     return np.arcsin(np.minimum(x, 1.0))
 
