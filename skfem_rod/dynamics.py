@@ -194,6 +194,8 @@ class PseudoDynamics:
         self.unstable = False
         self.saddle = None
         self.away_from = None
+        self.dt_saddle = np.inf
+        self.pushes = 0
         self.log = DynamicsLog()
         self.inner_opts = replace(self.opts,
                                   max_iterations=min(self.opts.max_iterations, DAMPED_ITERATIONS),
@@ -271,8 +273,18 @@ class PseudoDynamics:
         start when a step or a polish found a saddle (a damped flow started
         on it would stay there)."""
         p = self.problem
-        mode = p.to_spatial(self.S.lowest_mode(r, R, lam)[1]).reshape(-1, 6)
+        low, mode_b, _ = self.S.lowest_mode(r, R, lam)
+        mode = p.to_spatial(mode_b).reshape(-1, 6)
+        # the proximal problem is convex along the mode while 1/dt exceeds
+        # |low| / (v.W v): longer implicit steps could converge back onto the
+        # saddle (Newton finds any stationary point), so dt stays below half
+        # that bound until the flow is away from it
+        v = mode.ravel() / max(np.linalg.norm(mode), 1e-300)
+        q = float(np.dot(self.W * v, v))
+        self.dt_saddle = 0.5 * q / abs(low) if low < 0 else np.inf
         size = 0.5 * p.contact.radius if p.contact is not None else 1e-3 * p.rod.length
+        size *= 2.0 ** min(self.pushes, 10)          # a push that did not get away
+        self.pushes += 1
         a = min(size / max(np.abs(mode[:, :3]).max(), 1e-300),
                 0.1 / max(np.abs(mode[:, 3:]).max(), 1e-300))
         # no polish until the flow is well away from the saddle (Newton would
@@ -286,7 +298,7 @@ class PseudoDynamics:
         if self.away_from is None:
             return False
         if np.abs(r - self.away_from[0]).max() > self.away_from[1]:
-            self.away_from = None
+            self.away_from, self.dt_saddle, self.pushes = None, np.inf, 0
             return False
         return True
 
@@ -333,8 +345,18 @@ class PseudoDynamics:
             easy = easy + 1 if its <= EASY else 0
             if easy >= 2:                        # two easy steps in a row
                 dt = min(2.0 * dt, DT_CEIL * self.dt0)
+            near = self.near_saddle(r)
+            dt = min(dt, self.dt_saddle)
+            if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:
+                if morse_index(p, r, R, self.lam_of(t)) > 0:
+                    # at rest next to the saddle (the push was too small): again
+                    r, R = self.push(r, R, self.lam_of(t))
+                    dt = min(dt, self.dt_saddle)
+                    continue
+                near = False                     # at rest in a stable state nearby
+                self.away_from, self.dt_saddle, self.pushes = None, np.inf, 0
             if t >= t_target - 1e-14 and vis <= min(opts.dynamics_tol, next_polish) \
-                    and not self.near_saddle(r):
+                    and not near:
                 done = self.polish(r, R, t)
                 if done is not None:
                     r2, R2, rep2 = done
@@ -342,7 +364,7 @@ class PseudoDynamics:
                 next_polish = 0.1 * vis          # try again once it moved on
                 if self.unstable:                # it found a saddle: leave it
                     r, R = self.push(self.saddle[0], self.saddle[1], self.lam_of(t))
-                    next_polish, dt = np.inf, min(dt, 4 * self.dt0)
+                    next_polish, dt = np.inf, min(dt, self.dt_saddle)
         return None, (f"no equilibrium after {steps} damped steps (max_damped_steps="
                       f"{opts.max_damped_steps}) from pseudo-time {t:.6g}")
 
