@@ -224,18 +224,21 @@ def main(argv=None):
     p.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.3])
     p.add_argument("--turns", type=float, default=TURNS)
     p.add_argument("--budget", type=float, default=300.0, help="wall-time budget per run (s)")
+    p.add_argument("--max-damped", type=int, default=400,
+                   help="damped steps per damped phase before a run gives up")
     p.add_argument("--out", default=str(HERE))
     a = p.parse_args(argv)
     runs = []
     for n in a.elements:
         for g in a.gammas:
             print(f"{n} elements, gamma_T = {g:g}", flush=True)
-            r = run(n, g, a.turns, a.budget)
+            r = run(n, g, a.turns, a.budget, max_damped=a.max_damped)
             print(f"  -> {r['turns']:.3f} turns in {r['wall']:.1f} s: {r['message']}", flush=True)
             runs.append(r)
-    png = plot(runs, os.path.join(a.out, "plectoneme.png"))
-    command = "python benchmarks/bench_plectoneme.py " + " ".join(argv or sys.argv[1:])
-    report(runs, os.path.join(a.out, "RESULTS_plectoneme.md"), command.strip(), png)
+            # written after every run: a long run does not lose the others
+            png = plot(runs, os.path.join(a.out, "plectoneme.png"))
+            command = "python benchmarks/bench_plectoneme.py " + " ".join(argv or sys.argv[1:])
+            report(runs, os.path.join(a.out, "RESULTS_plectoneme.md"), command.strip(), png)
     return runs
 
 

@@ -138,6 +138,9 @@ def test_twisted_rod_records_stable_equilibria(twisted):
 
 
 @pytest.mark.slow
+@pytest.mark.skip(reason="measured: did not finish within 15 min on the shared 2-core machine "
+                         "(damped phases of 40-50 steps per quarter turn past the snap); "
+                         "issue 13, see benchmarks/RESULTS_plectoneme.md")
 def test_small_plectoneme_reaches_two_turns_without_gradient_flow():
     """PyElastica's plectoneme set-up (benchmarks/bench_plectoneme.py: L = 1,
     r = 0.025, E = 1e6, G = E / 1.5, T = 10 EI / L^2) on 30 elements, twisted
