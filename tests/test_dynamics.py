@@ -138,43 +138,6 @@ def test_twisted_rod_records_stable_equilibria(twisted):
 
 
 @pytest.mark.slow
-@pytest.mark.skip(reason="measured: did not finish within 15 min on the shared 2-core machine "
-                         "(damped phases of 40-50 steps per quarter turn past the snap); "
-                         "issue 13, see benchmarks/RESULTS_plectoneme.md")
-def test_small_plectoneme_reaches_two_turns_without_gradient_flow():
-    """PyElastica's plectoneme set-up (benchmarks/bench_plectoneme.py: L = 1,
-    r = 0.025, E = 1e6, G = E / 1.5, T = 10 EI / L^2) on 30 elements, twisted
-    to 2 turns in 8 steps: the rod snaps into a loop and a plectoneme (end
-    drawn in, torque below the straight rod's), by damped steps only; every
-    recorded state is a stable equilibrium with the contact penetration
-    within the tolerance and no strand through another (link = applied
-    turns)."""
-    import importlib.util
-    import pathlib
-    path = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "bench_plectoneme.py"
-    spec = importlib.util.spec_from_file_location("bench_plectoneme", path)
-    bp = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bp)
-    rod = bp.build(30, 0.0, turns=2.0)
-    res = rod.solve(8, dynamics=True, max_damped_steps=2000)
-    assert res.converged, res.message
-    assert res.steps[-1].load_factor == 1.0
-    assert all(st.flow_steps == 0 for st in res.steps)
-    assert res.dynamics.damped_steps > 0
-    c = rod.contact
-    last = res.steps[-1]
-    assert last.contact.s.size > 0                                  # plies in contact
-    assert last.r[rod.node("end"), 0] < 0.9 * bp.L                  # end drawn in
-    torque = res.reaction("end")[1][0]
-    assert torque < bp.GJ * 2 * np.pi * 2.0 / bp.L                  # below the straight rod
-    for st in res.steps:
-        assert st.contact.penetration <= c.tolerance * c.radius
-        assert st.contact.min_distance > (2 - 0.1) * c.radius       # no passage
-    top = res.topology()
-    assert top.link == pytest.approx(2.0, abs=1e-3)                 # Lk = Tw + Wr
-
-
-@pytest.mark.slow
 def test_twisted_rod_snaps_into_a_loop_as_the_reference():
     """The contact scene of tests/test_twisted_rod.py (L = 10 lambda, contact
     radius 0.1 lambda, 36 elements, 0.1 turn per step) to 1.9 turns with
