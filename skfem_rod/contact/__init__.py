@@ -71,8 +71,11 @@ class ContactOptions:
         crossing strands (:mod:`.crossing`); default False.
     crossing_penalty : compliance of the crossing pairs' point law (length
         per unit force); default ``penalty / radius``.
-    crossing_angle : crossing pairs only where the strands' tangents make
-        more than this angle (radians); default 15 degrees.
+    crossing_angle : cap of the angle above which a strict minimum of the
+        strand distance gets a crossing pair (radians, default 15 degrees):
+        pairs are added above ``min(crossing_angle, beta_h)``, ``beta_h``
+        the angle below which the Gauss slave points alone hold the
+        minimum (:func:`.crossing.sampled_angle`, docs/crossing-contact.md).
     """
     radius: float = _field(MISSING, "number", "contact radius eps (default: section radius)",
                            lo=0.0)
@@ -106,8 +109,9 @@ class ContactOptions:
     crossing_penalty: float = _field(None, "number", "compliance of the crossing pairs "
                                                      "(default penalty / eps)", lo=0.0)
     crossing_angle: float = _field(float(np.radians(15.0)), "number",
-                                   "crossing pairs only above this angle between the strands "
-                                   "(rad, below pi/2)", lo=0.0, hi=float(np.pi / 2))
+                                   "cap of the angle above which a distance minimum gets a "
+                                   "crossing pair (rad, below pi/2; the Gauss-sampling bound "
+                                   "beta_h lowers it)", lo=0.0, hi=float(np.pi / 2))
 
     @property
     def friction(self):
