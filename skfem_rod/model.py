@@ -256,6 +256,9 @@ class Rod:
         except (TypeError, ValueError):
             raise ValueError("where must be 'start', 'end' or a nodal arclength, "
                              f"got {where!r}") from None
+        if s < 0:
+            raise ValueError(f"where={where!r} is a negative arclength; where must be "
+                             "'start', 'end' or the arclength (>= 0) of a node")
         d = np.abs(self.mesh.s_nodes - s)
         k = int(np.argmin(d))
         if not np.isfinite(s) or d[k] > 1e-9 * self.length:

@@ -101,7 +101,7 @@ def test_rod_rejects_wrong_shape_and_section_types():
         Rod(geometry.straight(1.0), {"EA": 1.0}, 2)
 
 
-@pytest.mark.parametrize("where", ["middle", 0.3, np.nan, None, [1.0]])
+@pytest.mark.parametrize("where", ["middle", 0.3, np.nan, None, [1.0], -1e-300, -0.25])
 def test_where_must_be_an_end_or_a_node(where):
     with pytest.raises(ValueError, match=r"where"):
         cantilever().add_force(where, [1.0, 0.0, 0.0])
