@@ -137,6 +137,27 @@ def augmented_lagrangian(problem, solve_pass):
         uzawa += 1
 
 
+def step(problem, r, R, lam, prescribed, opts, inner=None):
+    """One solve at load factor ``lam`` from ``(r, R)``: this module's
+    augmented-Lagrangian loop (contact on) around ``inner`` (default the one
+    Newton, :func:`skfem_rod.newton.newton`; e.g. a
+    :class:`~skfem_rod.relax.GradientFlow` or a damped Newton of
+    :mod:`skfem_rod.dynamics`), the prescribed increment applied by the
+    first pass.  Returns ``(r, R, report)``.  Used by load stepping and the
+    pseudo-dynamics alike."""
+    if inner is None:
+        from .newton import newton
+        inner = lambda *a, **k: newton(problem, *a, **k)          # noqa: E731
+
+    def solve_pass(previous):
+        if previous is None:
+            return inner(r, R, lam, opts, prescribed=prescribed)
+        return inner(previous[0], previous[1], lam, opts)
+
+    r1, R1, _, rep = augmented_lagrangian(problem, solve_pass)
+    return r1, R1, rep
+
+
 def carry_crossing(m, cp):
     """The crossing multipliers of the pairs ``cp`` (0 for new element pairs)."""
     from .contact.crossing import carry

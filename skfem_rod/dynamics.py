@@ -53,7 +53,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .augmented import augmented_lagrangian
+from .augmented import step as al_step
 from .newton import newton
 from .problem import Viscous, clearance_ok
 from .relax import metric
@@ -146,23 +146,6 @@ def morse_index(problem, r, R, lam):
     Ks = (0.5 * (Kf + Kf.T)).tocsc()
     floor = STABLE_FLOOR * max(float(np.abs(Ks.diagonal()).max(initial=0.0)), 1e-300)
     return inertia(Ks, -floor)
-
-
-def al_step(problem, r, R, lam, prescribed, opts, inner=None):
-    """One solve at load factor ``lam`` from ``(r, R)``: the AL loop
-    (:func:`~skfem_rod.augmented.augmented_lagrangian`) around ``inner``
-    (default :func:`~skfem_rod.newton.newton`), the prescribed increment
-    applied by the first pass (as :func:`skfem_rod.solver.step`).  Returns
-    ``(r, R, report)``."""
-    inner = (lambda *a, **k: newton(problem, *a, **k)) if inner is None else inner
-
-    def solve_pass(previous):
-        if previous is None:
-            return inner(r, R, lam, opts, prescribed=prescribed)
-        return inner(previous[0], previous[1], lam, opts)
-
-    r1, R1, _, rep = augmented_lagrangian(problem, solve_pass)
-    return r1, R1, rep
 
 
 def viscous_inner(problem, W, c, r_ref, R_ref):

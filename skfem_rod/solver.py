@@ -25,8 +25,7 @@ import warnings
 
 import numpy as np
 
-from .augmented import augmented_lagrangian
-from .newton import newton
+from .augmented import step
 from .options import SolverOptions, make_options
 from .problem import Problem, clearance_ok
 from .relax import GradientFlow
@@ -40,22 +39,6 @@ __all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall"]
 class ContactShortfall(UserWarning):
     """The augmented-Lagrangian loop stopped at ``max_uzawa`` updates short of
     its tolerances in some steps (they are kept; ``Result.log`` names them)."""
-
-
-def step(problem, r, R, lam, prescribed, opts, inner=None):
-    """One load step at load factor ``lam`` from ``(r, R)``: the
-    augmented-Lagrangian loop (contact on) around ``inner`` (default Newton;
-    e.g. a :class:`~skfem_rod.relax.GradientFlow`), the prescribed increment
-    applied by the first pass.  Returns ``(r, R, report)``."""
-    inner = (lambda *a, **k: newton(problem, *a, **k)) if inner is None else inner
-
-    def solve_pass(previous):
-        if previous is None:
-            return inner(r, R, lam, opts, prescribed=prescribed)
-        return inner(previous[0], previous[1], lam, opts)
-
-    r1, R1, _, rep = augmented_lagrangian(problem, solve_pass)
-    return r1, R1, rep
 
 
 def load_path(path):
