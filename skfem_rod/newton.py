@@ -29,6 +29,7 @@ from .kinematics import ElementRotationError
 # Report, the position correction and its threshold live in problem.py
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
+from .problem import failed as _fail
 
 
 @dataclass
@@ -85,11 +86,6 @@ def safeguarded_update(problem, r, R, lam, dy, dl, opts, bound, rn):
             return (r_t, R_t, ev_t), alpha, ""
         alpha *= 0.5
     return None, alpha, why
-
-
-def _fail(r, R, lam, history, it, reason, ev=None):
-    return r, R, lam, Report(False, iterations=it, history=history, reason=reason,
-                             evaluation=ev)
 
 
 def newton(problem, r, R, lam, opts, prescribed=None, border=None):

@@ -57,6 +57,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from .contact.law import gap
 from .kinematics import ElementRotationError
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction
+from .problem import failed as _fail
 
 #: Armijo's sufficient decrease of the merit |(G, C)| per unit step
 ARMIJO = 1e-4
@@ -188,11 +189,6 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     dy[fixed] = remaining[fixed]
     dl[act] = x[n:]
     return dy, dl
-
-
-def _fail(r, R, lam, history, it, reason, ev=None):
-    return r, R, lam, Report(False, iterations=it, history=history, reason=reason,
-                             evaluation=ev)
 
 
 def contact_newton(problem, r, R, lam, opts, prescribed=None):

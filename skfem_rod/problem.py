@@ -409,6 +409,12 @@ class Report:
     lowest_eigenvalue: float = None
 
 
+def failed(r, R, lam, history, it, reason, ev=None):
+    """The ``(r, R, lam, report)`` of a Newton solve that stopped at
+    iteration ``it`` for ``reason`` (the state it stopped in)."""
+    return r, R, lam, Report(False, iterations=it, history=history, reason=reason,
+                             evaluation=ev)
+
 
 def position_correction(problem, r, R, lam, ev):
     """One Newton step on the positions alone, rotations held: ``K_rr dr =

@@ -296,20 +296,26 @@ def test_step_zero_with_contact_and_preloads_solves_contact_in_full():
     assert res.steps[1].contact.uzawa == 0
 
 
+def _docs_table(table):
+    """``(key, default cell)`` rows of docs/scenes.md's ``[table]`` table;
+    asserts that no key has two rows."""
+    import re
+    text = (PKG.parent / "docs" / "scenes.md").read_text()
+    block = text.split(f"### `[{table}]`", 1)[1].split("\n#", 1)[0]
+    rows = re.findall(r"^\| `(\w+)` \| [^|]+ \| ([^|]+) \|", block, flags=re.M)
+    names = [n for n, _ in rows]
+    assert len(names) == len(set(names)), f"duplicate rows in [{table}]"
+    return rows
+
+
 def test_docs_solver_table_matches_the_option_specs():
     """docs/scenes.md's [solver] table has one row per key of the scene's
     [solver] table (built from SolverOptions' specs), each with its
     default: the docs cannot drift from the one place options are checked."""
-    import re
-
     from skfem_rod import scene
     from skfem_rod.options import option_specs
-    text = (PKG.parent / "docs" / "scenes.md").read_text()
-    block = text.split("### `[solver]`", 1)[1].split("\n#", 1)[0]
-    rows = re.findall(r"^\| `(\w+)` \| [^|]+ \| ([^|]+) \|", block, flags=re.M)
-    names = [n for n, _ in rows]
-    assert len(names) == len(set(names)), "duplicate rows"
-    assert set(names) == set(scene.SOLVER)
+    rows = _docs_table("solver")
+    assert set(n for n, _ in rows) == set(scene.SOLVER)
 
     def value(cell):
         c = cell.strip().strip("`").strip()
@@ -389,7 +395,11 @@ def test_crossing_strands_never_converge_through_each_other(crossing):
         assert not res.converged
         assert "overlap" in res.message and "crossing contact" in res.message
     else:
-        assert res.steps[-1].load_factor > 0.15      # beyond where the other stops
+        # far beyond where the other stops and beyond 0.22, where pairs keyed
+        # by element pair stalled (the minimum crossed a node and lost its
+        # multiplier); it ends near 0.72, where the pressed strands roll over
+        # each other (the tangent turns indefinite; docs/crossing-contact.md)
+        assert res.steps[-1].load_factor > 0.7
 
 
 def test_docs_contact_table_matches_the_contact_specs():
@@ -397,18 +407,13 @@ def test_docs_contact_table_matches_the_contact_specs():
     [contact] table (built from ContactOptions' specs, as the API checks
     them), no duplicates (two rows had drifted in twice), and the defaults
     of the options that have a fixed one."""
-    import re
     from dataclasses import MISSING
 
     from skfem_rod import scene
     from skfem_rod.contact import ContactOptions
     from skfem_rod.options import option_specs
-    text = (PKG.parent / "docs" / "scenes.md").read_text()
-    block = text.split("### `[contact]`", 1)[1].split("\n#", 1)[0]
-    rows = re.findall(r"^\| `(\w+)` \| [^|]+ \| ([^|]+) \|", block, flags=re.M)
-    names = [n for n, _ in rows]
-    assert len(names) == len(set(names)), "duplicate rows"
-    assert set(names) == set(scene.CONTACT)
+    rows = _docs_table("contact")
+    assert set(n for n, _ in rows) == set(scene.CONTACT)
     defaults = dict(rows)
     for name, (spec, default) in option_specs(ContactOptions).items():
         cell = defaults[name].strip().strip("`").strip()

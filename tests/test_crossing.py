@@ -7,7 +7,6 @@ driven to a true penetration below 1e-3 radius by Newton + Uzawa."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from skfem_rod import Rod, Section, geometry
@@ -412,32 +411,6 @@ def test_held_pairs_without_any_minimum_in_reach():
     mesh, r = two_strands(np.pi / 2, 10 * EPS)
     held = (np.array([[3.0, 23.0, H, 1.0, -1.0]]), np.array([0.5]))
     assert crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held).size == 0
-
-
-@pytest.mark.slow
-def test_figure_eight_pressed_past_the_old_stall():
-    """The figure-eight of tests/test_core.py (strands crossing at 90
-    degrees, elements 9 eps, pressed together by point forces), crossing
-    contact on, plain load stepping: every step holds the true penetration
-    to the tolerance, and the path goes far beyond load factor 0.22 (where
-    the pairs keyed by element pair stalled: the minimum crossed a node and
-    lost its multiplier).  It ends near 0.72, where the pressed strands roll
-    over each other (the tangent's lowest eigenvalue turns negative: load
-    control cannot pass; docs/crossing-contact.md)."""
-    from test_core import _figure_eight
-    eps = 0.01
-    shape, (s1, s2) = _figure_eight(eps, 3 * eps)
-    rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
-    rod.clamp("start").clamp("end")
-    sn = rod.mesh.s_nodes
-    rod.add_force(float(sn[np.argmin(abs(sn - s1))]), [0.0, 0.0, -2.0])
-    rod.add_force(float(sn[np.argmin(abs(sn - s2))]), [0.0, 0.0, 2.0])
-    rod.enable_contact(crossing=True)
-    res = rod.solve(4)
-    for st in res.steps:
-        md = min_distance(rod.mesh, st.r, eps, rod.contact.exclusion)
-        assert md.penetration(eps) <= rod.contact.tolerance * eps
-    assert res.steps[-1].load_factor > 0.7
 
 
 @pytest.mark.parametrize("kwargs, name", [(dict(h=0.0), "h"), (dict(radius=-1.0), "radius"),
