@@ -28,7 +28,7 @@ first equilibrium past it); what it reached is reported.
 
 Reference relations plotted beside the results (docs/pseudo-dynamics.md):
 the straight twisted rod ``M = GJ 2 pi n / L``; the clamped Greenhill
-threshold (demos/twisted_rod.py, ``greenhill_factor``); the hard-core
+threshold (``skfem_rod.analytic.greenhill_factor``); the hard-core
 plectoneme plateau torque and end shortening per turn of Neukirch & Marko,
 PRL 106, 138104 (2011) with superhelix radius ``R = r`` (two plies in
 contact): ``T = B sin^4 t (1 + 2 cos^2 t) / (2 R^2 cos 2t)`` fixes the ply

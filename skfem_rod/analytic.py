@@ -32,7 +32,7 @@ from scipy.special import ellipeinc, ellipkinc
 __all__ = [
     "Rollup", "rollup",
     "CantileverSolution", "elastica_cantilever", "elastica_tip_elliptic",
-    "greenhill_critical_moment", "twist_torque", "clamped_rod_shooting",
+    "greenhill_critical_moment", "greenhill_factor", "twist_torque", "clamped_rod_shooting",
     "LocalizedWrithing", "localized_writhing",
 ]
 
@@ -371,6 +371,35 @@ def greenhill_critical_moment(B, T):
     8.0
     """
     return 2.0 * np.sqrt(B * T)
+
+
+def greenhill_factor(length):
+    """Clamped-length factor ``m = M_c / 2 sqrt(B T)`` of Greenhill's threshold.
+
+    A rod clamped at both ends (one end free to slide along the axis),
+    ``length`` long in units of ``lambda = sqrt(B/T)``, loses the straight
+    twisted equilibrium at ``M_c = 2 sqrt(B T) m``; ``m`` is the first root
+    of the clamped-clamped condition (derived in docs/twisted_rod.md).
+    ``m -> 1`` for a long rod and ``m L -> 4.49`` (Euler's clamped value,
+    tension free) for a short one.
+
+    Examples
+    --------
+    >>> round(greenhill_factor(50.0), 6)
+    1.001978
+    """
+    Lt = float(length)
+    if not np.isfinite(Lt) or Lt <= 0:
+        raise ValueError(f"greenhill_factor: length must be a positive finite number, got {length!r}")
+
+    def f(b):
+        return 2 * (np.cos(b * Lt) - np.cos(np.sqrt(b * b + 1) * Lt)) - Lt * np.sin(b * Lt) / b
+
+    bs = np.linspace(1e-9, 20.0 / Lt, 200001)
+    fv = f(bs)
+    i = np.flatnonzero(np.sign(fv[:-1]) != np.sign(fv[1:]))[0]
+    b = brentq(f, bs[i], bs[i + 1], xtol=1e-15)
+    return float(np.sqrt(b * b + 1))
 
 
 def twist_torque(GJ, angle, length):

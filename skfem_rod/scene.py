@@ -33,7 +33,7 @@ import numbers
 import os
 import pathlib
 import time
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import MISSING, dataclass
 
 import numpy as np
 

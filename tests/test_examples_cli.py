@@ -6,6 +6,7 @@ checkout."""
 import json
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 import sys
@@ -30,6 +31,36 @@ def test_examples_are_the_checkout_folders():
     with pytest.raises(ValueError, match="did you mean 'rollup'"):
         examples.files("rolup")
 
+
+def test_the_library_imports_no_demo():
+    # importing a demo module sets skfem_rod.examples.demos to that
+    # subpackage and hides the function examples.demos (the CI failed on it
+    # when a study imported demos/twisted_rod.py inside a function): no
+    # library module may import a demo, at the top or inside a function
+    import ast
+    top = pathlib.Path(skfem_rod.__file__).parent
+    found = []
+    for f in sorted(top.rglob("*.py")):
+        if "examples" in f.relative_to(top).parts[:-1]:
+            continue
+        for node in ast.walk(ast.parse(f.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [f"{node.module}"] + [f"{node.module}.{a.name}" for a in node.names]
+                     if isinstance(node, ast.ImportFrom) and node.module else [])
+            if any(re.search(r"(^|\.)examples\.demos(\.|$)", n) for n in names):
+                found.append(f"{f.relative_to(top)}:{node.lineno}")
+    assert not found, f"library modules importing a demo: {found}"
+    # and a fresh interpreter that imports every library module keeps the function
+    code = ("import importlib, pathlib, skfem_rod\n"
+            "top = pathlib.Path(skfem_rod.__file__).parent\n"
+            "for f in sorted(top.rglob('*.py')):\n"
+            "    parts = f.relative_to(top.parent).with_suffix('').parts\n"
+            "    if 'examples' in parts[:-1] or parts[-1] == '__main__':\n"
+            "        continue\n"
+            "    importlib.import_module('.'.join(p for p in parts if p != '__init__'))\n"
+            "from skfem_rod import examples\n"
+            "assert callable(examples.demos), examples.demos\n")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
 
 def test_example_list_show_copy(tmp_path, capsys):
     assert cli.main(["example"]) == 0

@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import skfem_rod
 from skfem_rod import Rod, Section, geometry
 from skfem_rod import assembly as assembly_mod
 from skfem_rod import mesh as mesh_mod

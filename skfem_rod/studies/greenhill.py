@@ -18,7 +18,7 @@ one end; the other end stays on the axis, is pulled by ``T`` and turned
 by ``phi``, both growing with the load factor.  The straight twisted rod is
 an equilibrium for every load; it loses stability when (Greenhill; the
 clamped-length factor ``m`` is the first root of the clamped-clamped
-condition, :func:`skfem_rod.examples.demos.twisted_rod.greenhill_factor`,
+condition, :func:`skfem_rod.analytic.greenhill_factor`,
 derived in docs/twisted_rod.md)
 
     M_c = 2 sqrt(B T) m(L sqrt(T / B)),      m -> 1 for a long rod.
@@ -33,17 +33,12 @@ import os
 import numpy as np
 
 from .. import examples
+from ..analytic import greenhill_factor
 
 #: the shipped scene of the study
 SCENE = examples.SCENES / "greenhill_sweep.toml"
 #: the study at a small size (docs build, tests): coarser mesh and path, 3 tensions
 SMALL = dict(n_elements=16, n_steps=12, points=[0, 2, 4])
-
-
-def greenhill_factor(length):
-    """``M_c / 2 sqrt(B T)`` of a clamped rod ``length / sqrt(B/T)`` long."""
-    from ..examples.demos.twisted_rod import greenhill_factor as m
-    return m(length)
 
 
 def scene_table(n_elements=None, n_steps=None, points=None):

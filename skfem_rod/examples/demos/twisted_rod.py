@@ -81,6 +81,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from skfem_rod import Rod, Section, geometry
+from skfem_rod.analytic import greenhill_factor
 from skfem_rod.rotations import expm
 from skfem_rod.stability import critical_load
 
@@ -97,21 +98,6 @@ def section(radius):
 # ---------------------------------------------------------------------------
 # 1. Greenhill: the buckling threshold
 # ---------------------------------------------------------------------------
-def greenhill_factor(length):
-    """``m = M_c / 2 sqrt(B T)`` of a clamped rod of length ``length``
-    (in units of lambda): first root of the clamped-clamped condition."""
-    Lt = float(length)
-
-    def f(b):
-        return 2 * (np.cos(b * Lt) - np.cos(np.sqrt(b * b + 1) * Lt)) - Lt * np.sin(b * Lt) / b
-
-    bs = np.linspace(1e-9, 20.0 / Lt, 200001)
-    fv = f(bs)
-    i = np.flatnonzero(np.sign(fv[:-1]) != np.sign(fv[1:]))[0]
-    b = brentq(f, bs[i], bs[i + 1], xtol=1e-15)
-    return float(np.sqrt(b * b + 1))
-
-
 def straight_rod(length, n_elements, radius=0.01, turns=1.0):
     """Clamp at the start; end on the axis, free along x, end rotation
     ``2 pi turns`` about x (at load factor 1); constant dead tension T
