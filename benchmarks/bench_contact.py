@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.contact import assembly as contact_assembly
 from skfem_rod.problem import Problem
 
 HERE = Path(__file__).resolve().parent
@@ -56,7 +55,7 @@ def measure(scene, n, repeats):
     for cold in (False, True):
         for _ in range(repeats):
             if cold:
-                contact_assembly._PATTERN_CACHE.clear()
+                system.contact_patterns.normal.clear()
             system.timers.clear()
             ev = system.evaluate(rod.r0, rod.R0, 1.0)
             res, K = ev.residual, ev.tangent

@@ -36,7 +36,6 @@ from pathlib import Path
 import numpy as np
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.contact import friction_assembly
 from skfem_rod.rotations import expm
 from skfem_rod.problem import Problem
 
@@ -59,8 +58,8 @@ def scene(n_elements):
 
 
 def systems(rod):
-    """One system per case, all on ``rod`` (one mesh: the assemblers'
-    pattern caches serve every case)."""
+    """One system per case, all on ``rod`` (one mesh; each system keeps
+    its own pattern caches, ``Problem.contact_patterns``)."""
     out = {}
     for name, options in CASES.items():
         rod.enable_contact(**options)
@@ -96,7 +95,7 @@ def measure(n, repeats):
     cold = {name: [] for name in sy if name != "off"}     # friction pattern rebuilt
     for _ in range(3):
         for name in cold:
-            friction_assembly._PATTERN_CACHE.clear()
+            sy[name].contact_patterns.friction.clear()
             cold[name].append(iteration(sy[name], r, R)[0][3])
     cold = {name: np.median(v) for name, v in cold.items()}
     rows = {name: [] for name in sy}

@@ -158,8 +158,11 @@ class Problem:
         self.multipliers = None
         self.reference = None
         if self.contact is not None:
+            from .contact.assembly import ContactPatterns
             from .contact.search import slave_points
             self.slaves = slave_points(rod.mesh, self.contact.n_slave)
+            #: the sparse patterns of the contact tangents, kept between evaluations
+            self.contact_patterns = ContactPatterns()
             self.multipliers = Multipliers.zeros(self.slaves.s.size, self.friction)
             if self.friction:
                 self.reference = (rod.r0.copy(), rod.R0.copy())
@@ -277,19 +280,22 @@ class Problem:
         t1 = time.perf_counter()
         mu = mu[pairs.slave]
         energy, force, K, fN = contact_work(self.mesh, r, pairs, m.normal, mu, c.radius,
-                                            tangent)
+                                            tangent, cache=self.contact_patterns.normal)
         t2 = time.perf_counter()
         tm["contact_search"] += t1 - t0
         tm["contact_assembly"] += t2 - t1
         fr = None
         if self.friction:
             from .contact.friction_assembly import friction_work
+            from .contact.law import NormalLaw
+            from .contact.slip import SlipState
             r_n, R_n = self.reference
             params = c.friction_params(push_forward=True, scale_T=m.friction_scale,
                                        scale_R=m.friction_scale)
-            ff, Kf, fr = friction_work(self.mesh, r, R, r_n, R_n, pairs, m.normal, mu,
-                                       c.radius, m.tangential, m.rotational,
-                                       tangent=tangent, K_normal=K, params=params)
+            state = SlipState(r, R, r_n, R_n, m.tangential, m.rotational)
+            ff, Kf, fr = friction_work(self.mesh, state, pairs, NormalLaw(m.normal, mu, c.radius),
+                                       params, tangent=tangent, K_normal=K,
+                                       cache=self.contact_patterns.friction)
             force = force + ff
             if tangent:
                 K = Kf                                  # includes the normal tangent

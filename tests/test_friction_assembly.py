@@ -7,8 +7,10 @@ import pytest
 
 from skfem_rod import Rod
 from skfem_rod.contact import friction as law
-from skfem_rod.contact.friction_assembly import friction_work
+from skfem_rod.contact.friction_assembly import FrictionParams, friction_work
+from skfem_rod.contact.law import NormalLaw
 from skfem_rod.contact.search import search, slave_points
+from skfem_rod.contact.slip import SlipState
 from skfem_rod.rotations import expm
 
 from test_contact import SEC, hairpin
@@ -36,9 +38,9 @@ def _setup(seed, n_el=16):
 def _eval(rod, r, R, r_n, R_n, sl, lams, params, tangent=True):
     pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
     lam_N, lam_T, lam_R = lams
-    return friction_work(rod.mesh, r, R, r_n, R_n, pairs, lam_N, params["mu_N"], EPS,
-                         lam_T, lam_R, params["gamma_T"], params["gamma_R"],
-                         params["mu_T"], params["mu_R"], tangent)
+    p = FrictionParams(params["gamma_T"], params["gamma_R"], params["mu_T"], params["mu_R"])
+    return friction_work(rod.mesh, SlipState(r, R, r_n, R_n, lam_T, lam_R), pairs,
+                         NormalLaw(lam_N, params["mu_N"], EPS), p, tangent)
 
 
 # two regimes: mostly slipping (small coefficients) and mostly sticking

@@ -11,7 +11,9 @@ import pytest
 from skfem_rod import Rod
 from skfem_rod.contact import friction as law
 from skfem_rod.contact.friction_assembly import FrictionParams, friction_work
+from skfem_rod.contact.law import NormalLaw
 from skfem_rod.contact.search import search, slave_points
+from skfem_rod.contact.slip import SlipState
 from skfem_rod.rotations import expm
 
 from test_contact import SEC, hairpin
@@ -21,8 +23,8 @@ from test_friction_assembly import EPS, _setup
 def _work(rod, r, R, r_n, R_n, sl, lams, p, mu_N=1e-3, tangent=True):
     pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
     lam_N, lam_T, lam_R = lams
-    return friction_work(rod.mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, EPS, lam_T, lam_R,
-                         tangent=tangent, params=p)
+    return friction_work(rod.mesh, SlipState(r, R, r_n, R_n, lam_T, lam_R), pairs,
+                         NormalLaw(lam_N, mu_N, EPS), p, tangent=tangent)
 
 
 def _unit(v):

@@ -24,9 +24,12 @@ the projection sits on an element end, or ``|y'|^2 - (x - y) . y''`` is not
 safely positive (non-unique projection), the ``Delta xi`` term is dropped.
 All pairs are evaluated at once; the blocks of the pairs of one element
 pair are summed by one batched product and the node blocks written straight
-into CSC arrays (:func:`_tangent`; the pattern is cached while the element
-pairs in contact do not change).
+into CSC arrays (:func:`_tangent`; the pattern is kept in a :class:`PatternCache`, one per
+tangent and problem (:class:`ContactPatterns`), while the element pairs in
+contact do not change).
 """
+from dataclasses import dataclass, field
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -34,9 +37,86 @@ from ..element import shape_functions
 from .law import gap, normal_force, potential
 
 
-def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True):
+class PatternCache:
+    """The CSC pattern of a contact tangent built for the element pairs last
+    in contact, kept while they do not change (they seldom change between
+    Newton iterations).  ``merged``: what an assembler derived from the
+    pattern (the friction assembler: where the normal tangent's entries
+    sit in it), dropped with it.  Owned by the object that assembles (one
+    per tangent and :class:`skfem_rod.problem.Problem`, in
+    :class:`ContactPatterns`); a fresh one caches nothing across calls."""
+
+    def __init__(self):
+        self.clear()
+
+    def clear(self):
+        """Forget the pattern (the next assembly builds it again)."""
+        self.nodes = self.ge = self.pattern = self.merged = None
+
+    def lookup(self, mesh, ge):
+        """The kept pattern if it was built for the same mesh and element
+        pairs ``ge``, else None."""
+        if (self.nodes is mesh.nodes and self.ge.shape == ge.shape
+                and np.array_equal(self.ge, ge)):
+            return self.pattern
+        return None
+
+    def store(self, mesh, ge, pattern):
+        """Keep ``pattern``, built for ``mesh`` and element pairs ``ge``
+        (what was derived from the last one goes); returns it."""
+        self.clear()
+        self.nodes, self.ge, self.pattern = mesh.nodes, ge.copy(), pattern
+        return pattern
+
+
+@dataclass
+class ContactPatterns:
+    """The sparse-pattern caches of one problem's contact tangents: the
+    normal contact tangent's (:func:`contact_work`) and the friction
+    tangent's (:func:`.friction_assembly.friction_work`)."""
+    normal: PatternCache = field(default_factory=PatternCache)
+    friction: PatternCache = field(default_factory=PatternCache)
+
+    def clear(self):
+        """Forget both patterns."""
+        self.normal.clear()
+        self.friction.clear()
+
+
+@dataclass(frozen=True)
+class _TangentTerms:
+    """The active pairs' terms of the contact tangent (:func:`_tangent`):
+    slave and master elements ``(m,)``, the operators ``P``, ``Q`` ``(m, 8)``
+    of ``delta(x - y)`` and ``delta y'``, the normal ``N`` and ``u = y' / l``
+    ``(m, 3)``, and the weights ``c_nn``, ``c_proj``, ``c_om`` ``(m,)``."""
+    s_elem: np.ndarray
+    m_elem: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    N: np.ndarray
+    u: np.ndarray
+    c_nn: np.ndarray
+    c_proj: np.ndarray
+    c_om: np.ndarray
+
+    def matrices(self):
+        """``G`` ``(m, 4, 3, 3)``: ``G1, G2, G2^T, G3`` of :func:`_tangent`."""
+        N, u, c_nn, c_proj, c_om = self.N, self.u, self.c_nn, self.c_proj, self.c_om
+        NN = N[:, :, None] * N[:, None, :]
+        G = np.empty((N.shape[0], 4, 3, 3))
+        G[:, 0] = ((c_nn + c_proj)[:, None, None] * NN
+                   + c_om[:, None, None] * (u[:, :, None] * u[:, None, :]))
+        G[:, 0, [0, 1, 2], [0, 1, 2]] -= c_proj[:, None]
+        G[:, 1] = c_om[:, None, None] * (u[:, :, None] * N[:, None, :])
+        G[:, 2] = np.swapaxes(G[:, 1], 1, 2)
+        G[:, 3] = c_om[:, None, None] * NN
+        return G
+
+
+def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True, cache=None):
     """Energy, force vector ``(n_dofs,)`` and tangent (CSC or None) of the
-    contact pairs, and the per-pair normal forces ``f_N``."""
+    contact pairs, and the per-pair normal forces ``f_N``.  ``cache``: the
+    :class:`PatternCache` of the tangent's pattern (default: none kept)."""
     n = mesh.n_dofs
     m = pairs.size
     if m == 0:
@@ -70,12 +150,13 @@ def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True):
         den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
         use = pairs.interior[keep] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
         Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
-        K = _tangent(mesh, pairs.s_elem[keep], pairs.m_elem[keep], P, Q, Nv, y1 / l[:, None],
-                     w * dfa, w * fa / l, w * fa * Om * l)
+        terms = _TangentTerms(pairs.s_elem[keep], pairs.m_elem[keep], P, Q, Nv,
+                              y1 / l[:, None], w * dfa, w * fa / l, w * fa * Om * l)
+        K = _tangent(mesh, terms, PatternCache() if cache is None else cache)
     return energy, force, K, fN
 
 
-def _tangent(mesh, s_elem, m_elem, P, Q, N, u, c_nn, c_proj, c_om):
+def _tangent(mesh, terms, cache):
     r"""The pairs' 24 x 24 blocks, summed into a CSC matrix.
 
     With ``a(delta) = P (x) u + Q (x) N`` (``u = y' / l``), the block is
@@ -87,18 +168,13 @@ def _tangent(mesh, s_elem, m_elem, P, Q, N, u, c_nn, c_proj, c_om):
     nodes, so their blocks are summed by one batched product per element
     pair, (64 node pairs x 4 k) @ (4 k x 9).  The node blocks are then merged
     by global (column node, row node) and written straight into CSC arrays
-    (no COO sort of ``m * 576`` entries)."""
+    (no COO sort of ``m * 576`` entries; pattern kept in ``cache``)."""
     n = mesh.n_dofs
+    s_elem, m_elem, P, Q = terms.s_elem, terms.m_elem, terms.P, terms.Q
     m = P.shape[0]
     if m == 0:
         return sp.csc_matrix((n, n))
-    NN = N[:, :, None] * N[:, None, :]
-    G = np.empty((m, 4, 3, 3))
-    G[:, 0] = (c_nn + c_proj)[:, None, None] * NN + c_om[:, None, None] * (u[:, :, None] * u[:, None, :])
-    G[:, 0, [0, 1, 2], [0, 1, 2]] -= c_proj[:, None]
-    G[:, 1] = c_om[:, None, None] * (u[:, :, None] * N[:, None, :])
-    G[:, 2] = np.swapaxes(G[:, 1], 1, 2)
-    G[:, 3] = c_om[:, None, None] * NN
+    G = terms.matrices()
     # element pair {v, e}, v <= e, nodes ordered (v, e): swap the halves of
     # the operators of pairs whose slave element is the larger
     swap = s_elem > m_elem
@@ -123,31 +199,18 @@ def _tangent(mesh, s_elem, m_elem, P, Q, N, u, c_nn, c_proj, c_om):
     Y = np.einsum("gkabx,gkbj->gkaxj", Gp, X).reshape(ng, 2 * K, 72)
     blocks = X.reshape(ng, 2 * K, 8).transpose(0, 2, 1) @ Y        # (ng, I, 9, J)
     ge = ks[start]
-    nnz, posraw, indices, indptr = _pattern(mesh, ge, ne)
+    nnz, posraw, indices, indptr = _pattern(mesh, ge, ne, cache)
     data = np.bincount(posraw, weights=blocks.ravel(), minlength=nnz)
     return sp.csc_matrix((data, indices, indptr), shape=(n, n))
 
 
-_PATTERN_CACHE = {}
-
-
-def cached_pattern(cache, mesh, ge):
-    """The pattern kept in ``cache`` if it was built for the same mesh and
-    element pairs ``ge``, else None (store a new one with
-    ``cache.update(nodes=mesh.nodes, ge=ge.copy(), out=...)``)."""
-    if (cache.get("nodes") is mesh.nodes and cache["ge"].shape == ge.shape
-            and np.array_equal(cache["ge"], ge)):
-        return cache["out"]
-    return None
-
-
-def _pattern(mesh, ge, ne):
+def _pattern(mesh, ge, ne, cache):
     """CSC structure of the contact stiffness of element pairs ``ge``
     (``lo * ne + hi``) and the data position of every (pair, 3 x 3
-    component, node block) value.  The last pattern is cached (the
-    element pairs in contact seldom change between Newton iterations)."""
-    c = _PATTERN_CACHE
-    hit = cached_pattern(c, mesh, ge)
+    component, node block) value.  The last pattern is kept in ``cache``
+    (the element pairs in contact seldom change between Newton
+    iterations)."""
+    hit = cache.lookup(mesh, ge)
     if hit is not None:
         return hit
     n, nn = mesh.n_dofs, mesh.n_nodes
@@ -172,7 +235,4 @@ def _pattern(mesh, ge, ne):
     posraw = (base[b_i] + a[:, None] + cc[:, None] * stride[b_i]).ravel()
     indices = np.empty(nnz, dtype=itype)
     indices[posraw] = np.broadcast_to(6 * brow[b_i] + a[:, None], (ng, 8, 9, 8)).ravel()
-    out = (nnz, posraw, indices, indptr.astype(itype))
-    c.clear()
-    c.update(nodes=mesh.nodes, ge=ge.copy(), out=out)
-    return out
+    return cache.store(mesh, ge, (nnz, posraw, indices, indptr.astype(itype)))

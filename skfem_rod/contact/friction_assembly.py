@@ -41,7 +41,8 @@ The pairs of one element pair share their 8 nodes: the columns are expanded
 pair by pair, the rows by one matrix product per element pair, batched over
 the element pairs with the same number of pairs; the blocks are summed into
 CSC arrays by one ``bincount`` over a cached pattern (kept while the element
-pairs in contact do not change, as in :mod:`.assembly`), into which the
+pairs in contact do not change, in the caller's
+:class:`.assembly.PatternCache`, as in :mod:`.assembly`), into which the
 normal contact tangent can be added (``K_normal``) instead of a sparse sum.
 """
 from dataclasses import dataclass
@@ -52,8 +53,7 @@ import scipy.sparse as sp
 
 from ..rotations import hat, tangent_inv
 import skfem_rod.contact.friction as law
-from .law import gap, normal_force
-from .assembly import cached_pattern
+from .assembly import PatternCache
 from .slip import NC, NM, pulled_back, pushed, slip_kinematics
 
 
@@ -256,9 +256,10 @@ def _core(kin, w, F, DF, couple, Dcouple):
     return C
 
 
-def _expand(mesh, kin, ve, me, C, K_normal):
+def _expand(mesh, kin, ve, me, C, K_normal, cache):
     """The pairs' blocks ``U C U^T`` summed into a CSC matrix (see the
-    module docstring); ``K_normal`` added into its arrays."""
+    module docstring; the pattern kept in ``cache``); ``K_normal`` added
+    into its arrays."""
     n = mesh.n_dofs
     m = ve.size
     nodes = kin.nodes
@@ -296,12 +297,12 @@ def _expand(mesh, kin, ve, me, C, K_normal):
                       out=vals[part, g0:g0 + g])                    # (g, (J, c, a), I)
         lo, g0 = hi, g0 + g
     gnodes = np.concatenate([mesh.nodes[ge // ne], mesh.nodes[ge % ne]], axis=1)
-    nnz, pos, indices, indptr = _pattern(mesh, ge, gnodes)
+    nnz, pos, indices, indptr = _pattern(mesh, ge, gnodes, cache)
     data = np.bincount(pos, weights=vals.ravel(), minlength=nnz)
     K = sp.csc_matrix((data, indices, indptr), shape=(n, n))
     if K_normal is not None:
         K_normal = sp.csc_matrix(K_normal)
-        where = _normal_positions(K_normal, indices, indptr, n)
+        where = _normal_positions(K_normal, indices, indptr, n, cache)
         if where is None:
             K = (K + K_normal).tocsc()
         else:
@@ -309,19 +310,15 @@ def _expand(mesh, kin, ve, me, C, K_normal):
     return K
 
 
-_PATTERN_CACHE = {}
-
-
-def _pattern(mesh, ge, gnodes):
+def _pattern(mesh, ge, gnodes, cache):
     """CSC structure (``nnz, pos, indices, indptr``) of the friction tangent
     of the element pairs ``ge`` (keys ``lo * n_elements + hi``, in the order
     of the blocks) with nodes ``gnodes`` ``(ng, 8)``; ``pos``: the data
     position of every entry ``(part, g, J, c, a, I)`` of the element-pair
     blocks (row dof ``6 I + a``, column ``6 J + 3 part + c``).  The last
-    pattern is cached: the element pairs in contact seldom change between
-    Newton iterations."""
-    c = _PATTERN_CACHE
-    hit = cached_pattern(c, mesh, ge)
+    pattern is kept in ``cache``: the element pairs in contact seldom change
+    between Newton iterations."""
+    hit = cache.lookup(mesh, ge)
     if hit is not None:
         return hit
     nn, n = mesh.n_nodes, mesh.n_dofs
@@ -345,19 +342,16 @@ def _pattern(mesh, ge, gnodes):
     rows = (6 * brow[:, None] + np.arange(6)).ravel()
     shift = 6 * first[np.arange(6 * nn) // 6] - indptr[:-1]
     indices = rows[np.arange(nnz) + np.repeat(shift, np.diff(indptr))].astype(itype)
-    out = (nnz, pos, indices, indptr.astype(itype))
-    c.clear()
-    c.update(nodes=mesh.nodes, ge=ge.copy(), out=out)
-    return out
+    return cache.store(mesh, ge, (nnz, pos, indices, indptr.astype(itype)))
 
 
-def _normal_positions(K_normal, indices, indptr, n):
+def _normal_positions(K_normal, indices, indptr, n, cache):
     """Data positions, in the friction tangent (``indices``, ``indptr``),
     of the entries of the CSC matrix ``K_normal`` (the normal contact
     tangent of the same pairs, whose node blocks are among the friction's),
-    or None if its pattern is not inside (or not canonical).  Cached with
-    the pattern."""
-    c = _PATTERN_CACHE.get("normal")
+    or None if its pattern is not inside (or not canonical).  Kept with
+    the pattern in ``cache`` (``merged``)."""
+    c = cache.merged
     if (c is not None and c[0].shape == K_normal.indptr.shape
             and c[1].shape == K_normal.indices.shape
             and np.array_equal(c[0], K_normal.indptr) and np.array_equal(c[1], K_normal.indices)):
@@ -367,43 +361,40 @@ def _normal_positions(K_normal, indices, indptr, n):
     where = np.minimum(np.searchsorted(key_f, key_n), key_f.size - 1)
     if not (np.all(np.diff(key_n) > 0) and np.array_equal(key_f[where], key_n)):
         where = None
-    _PATTERN_CACHE["normal"] = (K_normal.indptr.copy(), K_normal.indices.copy(), where)
+    cache.merged = (K_normal.indptr.copy(), K_normal.indices.copy(), where)
     return where
 
 
-def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R,
-                  gamma_T=0.0, gamma_R=0.0, mu_T=1.0, mu_R=1.0, tangent=True, K_normal=None,
-                  *, params=None):
+def friction_work(mesh, state, pairs, normal, params, tangent=True, K_normal=None,
+                  cache=None):
     """Residual ``(n_dofs,)``, tangent (CSC or None) and :class:`FrictionOutput`
     of the frictional contact work of ``pairs`` (from :func:`.search.search`
-    at ``r``).
+    at ``state.r``).
 
-    ``r, R`` current nodal state; ``r_n, R_n`` the last converged one;
-    ``lam_N`` ``(n_slaves,)``, ``lam_T``, ``lam_R`` ``(n_slaves, 3)``: the
-    multipliers; ``mu_*`` the compliances, ``gamma_*`` the coefficients
-    (``gamma_R`` a length), or all of them as ``params``
-    (:class:`FrictionParams`, which also selects ``push_forward``).  Pairs
-    with ``f_N = 0`` carry no friction.  ``K_normal`` (optional, CSC): a
-    matrix added to the returned tangent, the normal contact tangent of the
-    same pairs (from :func:`.assembly.contact_work`): its entries are added
-    into the friction tangent's arrays, which hold its pattern.
+    ``state`` (:class:`.slip.SlipState`): the current and the last
+    converged nodal states and the friction multipliers ``lam_T``,
+    ``lam_R`` ``(n_slaves, 3)`` carried at the latter; ``normal``
+    (:class:`.law.NormalLaw`): the normal multipliers ``(n_slaves,)``,
+    compliances and contact radius; ``params`` (:class:`FrictionParams`):
+    the coefficients and compliances, and ``push_forward``.  Pairs with
+    ``f_N = 0`` carry no friction.  ``K_normal`` (optional, CSC): a matrix
+    added to the returned tangent, the normal contact tangent of the same
+    pairs (from :func:`.assembly.contact_work`): its entries are added into
+    the friction tangent's arrays, which hold its pattern.  ``cache``: the
+    :class:`.assembly.PatternCache` of the friction tangent's pattern
+    (default: none kept).
     """
-    p = params if params is not None else FrictionParams(gamma_T, gamma_R, mu_T, mu_R)
+    p = params
     n = mesh.n_dofs
     if K_normal is not None and K_normal.shape != (n, n):
         raise ValueError(f"K_normal must be an ({n}, {n}) matrix, got shape {K_normal.shape}")
-    fN_all, dfN_all = normal_force(gap(pairs.distance, radius), lam_N[pairs.slave], mu_N)
+    fN_all, dfN_all = normal.forces(pairs)
     idx = np.flatnonzero(fN_all > 0)
     if idx.size == 0:
-        z = np.zeros((0, 3))
-        out = FrictionOutput(idx, idx, z, z, z, z, np.zeros(0, int), np.zeros(0, int),
-                             np.zeros(0), z, z, z)
-        if not tangent:
-            return np.zeros(n), None, out
-        return np.zeros(n), (sp.csc_matrix((n, n)) if K_normal is None else K_normal), out
+        return _no_friction(n, idx, tangent, K_normal)
     sl, w, fN, dfN = pairs.slave[idx], pairs.weight[idx], fN_all[idx], dfN_all[idx]
-    kin = slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, tangent)
-    fo = _forces(kin, lam_T[sl], lam_R[sl], fN, dfN, p, tangent)
+    kin = slip_kinematics(mesh, state.r, state.R, state.r_n, state.R_n, pairs, idx, tangent)
+    fo = _forces(kin, state.lam_T[sl], state.lam_R[sl], fN, dfN, p, tangent)
     force = _residual(n, kin, w, fo.F, fo.couple)
     back = (lambda f: pulled_back(kin, f)) if p.push_forward else (lambda f: f)
     out = FrictionOutput(idx, sl, fo.gT, fo.gR, fo.fT, fo.fR, fo.resT.state, fo.resR.state, fN,
@@ -413,5 +404,16 @@ def friction_work(mesh, r, R, r_n, R_n, pairs, lam_N, mu_N, radius, lam_T, lam_R
     dofs, loc = _local(kin, w, *_dforces_dfN(kin, fo, p))
     out.dresidual_dfN = (dofs.reshape(idx.size, 48), loc.reshape(idx.size, 48))
     C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
-    K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal)
+    K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal,
+                PatternCache() if cache is None else cache)
     return force, K, out
+
+
+def _no_friction(n, idx, tangent, K_normal):
+    """What :func:`friction_work` returns when no pair carries a force."""
+    z = np.zeros((0, 3))
+    out = FrictionOutput(idx, idx, z, z, z, z, np.zeros(0, int), np.zeros(0, int),
+                         np.zeros(0), z, z, z)
+    if not tangent:
+        return np.zeros(n), None, out
+    return np.zeros(n), (sp.csc_matrix((n, n)) if K_normal is None else K_normal), out

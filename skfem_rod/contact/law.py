@@ -16,7 +16,26 @@ Every contact is seen from both sides (each side's Gauss points are slaves
 too), so the two slave passes share the contact force: at convergence each
 carries about half of it.
 """
+from dataclasses import dataclass
+
 import numpy as np
+
+
+@dataclass(frozen=True)
+class NormalLaw:
+    """The normal law of an evaluation: the multipliers ``lambda_N``
+    ``(n_slaves,)``, the compliances ``mu_N`` (a number, or one per pair of
+    the :class:`.search.Pairs` it is applied to: the adaptive penalty) and
+    the contact radius ``eps``."""
+    multiplier: np.ndarray
+    compliance: object
+    radius: float
+
+    def forces(self, pairs):
+        """``f_N`` and ``d f_N / d d`` per pair of ``pairs``
+        (:func:`normal_force` at the pairs' gaps and slaves' multipliers)."""
+        return normal_force(gap(pairs.distance, self.radius), self.multiplier[pairs.slave],
+                            self.compliance)
 
 
 def gap(distance, radius):

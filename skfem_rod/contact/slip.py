@@ -108,6 +108,22 @@ class Slip:
         return self.t * np.sum(self.t * v, axis=1)[:, None]
 
 
+@dataclass(frozen=True)
+class SlipState:
+    """What the slips of an evaluation are measured from: the current nodal
+    state ``(r, R)``, the last converged one ``(r_n, R_n)`` and the friction
+    multipliers carried at the latter, ``lam_T``, ``lam_R``
+    ``(n_slaves, 3)`` (pushed forward with the slave section's incremental
+    rotation when :attr:`.friction_assembly.FrictionParams.push_forward`,
+    :func:`pushed`)."""
+    r: np.ndarray
+    R: np.ndarray
+    r_n: np.ndarray
+    R_n: np.ndarray
+    lam_T: np.ndarray
+    lam_R: np.ndarray
+
+
 def _at(N, values, nodes):
     return np.einsum("mk,mkc->mc", N, values[nodes])
 
