@@ -304,8 +304,8 @@ class Problem:
         if c.crossing:
             from .contact.crossing import carry, crossing_pairs, crossing_work
             t3 = time.perf_counter()
-            cp = crossing_pairs(self.mesh, r, c.radius, c.exclusion, min_angle=c.crossing_angle,
-                                n_slave=c.n_slave, tolerance=c.tolerance,
+            cp = crossing_pairs(self.mesh, r, c.radius, c.exclusion,
+                                threshold=c.crossing_threshold(),
                                 held=(m.crossing_key, m.crossing))
             lam = carry(m.crossing_key, m.crossing, cp.key)
             ec, fc, Kc, fNc = crossing_work(self.mesh, r, cp, lam, c.crossing_penalty,

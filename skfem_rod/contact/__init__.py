@@ -141,3 +141,9 @@ class ContactOptions:
         from .friction_assembly import FrictionParams
         return FrictionParams(self.gamma_T, self.gamma_R, self.mu_T / scale_T,
                               self.mu_R / scale_R, push_forward, self.rotational_slip)
+
+    def crossing_threshold(self):
+        """The :class:`.crossing.PairThreshold` of these options: which
+        minima of the strand distance get a crossing pair."""
+        from .crossing import PairThreshold
+        return PairThreshold(self.crossing_angle, self.n_slave, self.tolerance)

@@ -414,8 +414,25 @@ def _held_pairs(mesh, r, key, exclusion):
 GRID = 16
 
 
-def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(15.0),
-                   n_slave=3, tolerance=1e-3, held=None):
+@dataclass(frozen=True)
+class PairThreshold:
+    """Which strict minima of the strand distance get a fresh pair (both
+    parameters free): those whose effective angle is at least
+    ``min(min_angle, beta_h)``, ``beta_h`` the angle below which the
+    ``n_slave`` Gauss slave points per element hold a minimum to the
+    Uzawa ``tolerance`` (:func:`sampled_angle`).  From the contact options:
+    :meth:`skfem_rod.contact.ContactOptions.crossing_threshold`."""
+    min_angle: float = float(np.radians(15.0))
+    n_slave: int = 3
+    tolerance: float = 1e-3
+
+    def angle(self, h, radius):
+        """The threshold ``min(min_angle, beta_h)`` for elements ``h`` long."""
+        return np.minimum(self.min_angle, sampled_angle(h, radius, self.n_slave, self.tolerance))
+
+
+def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThreshold(),
+                   held=None):
     """Point-to-point contact pairs at the strict local minima of the
     distance between strands (see module doc and docs/crossing-contact.md).
 
@@ -424,11 +441,12 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(
     into both elements beside it), closer than ``reach`` and at least
     ``exclusion`` apart in arclength, whose effective angle ``beta``
     (``sin^2 beta = det F_pp / (F_uu F_vv)``: the angle of straight
-    strands; curvature counts) is at least ``min(min_angle, beta_h)``,
-    ``beta_h`` the angle below which the Gauss slave points hold a minimum
-    to the tolerance (:func:`sampled_angle`, smaller element length), is a
-    pair with both parameters free.  Flatter minima (near-parallel strands:
-    a line contact) are the Gauss-point pairs' job.
+    strands; curvature counts) is at least ``min(min_angle, beta_h)``
+    (``threshold``, a :class:`PairThreshold`: ``beta_h`` the angle below
+    which the Gauss slave points hold a minimum to the tolerance,
+    :func:`sampled_angle`, smaller element length), is a pair with both
+    parameters free.  Flatter minima (near-parallel strands: a line
+    contact) are the Gauss-point pairs' job.
 
     *Held minima.*  ``held = (key, multipliers)``, the pairs of the last
     multiplier update (``Multipliers.crossing_key``, ``.crossing``): each
@@ -456,62 +474,97 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, min_angle=np.radians(
     """
     reach = 3.0 * radius if reach is None else reach
     mn = _minima(mesh, r, radius, exclusion, reach)
-    vt = mesh.vertices
-    h_of = lambda e, f: np.maximum(vt[e + 1] - vt[e], vt[f + 1] - vt[f])   # noqa: E731
-    hmin = np.minimum(vt[mn["e"] + 1] - vt[mn["e"]], vt[mn["f"] + 1] - vt[mn["f"]])
-    beta_min = np.minimum(min_angle, sampled_angle(hmin, radius, n_slave, tolerance))
-    beta = np.arcsin(np.sqrt(np.clip(mn["sin2"], 0.0, 1.0)))
-    fresh = beta >= beta_min
-    mkey = np.c_[mn["s"], mn["s_bar"], h_of(mn["e"], mn["f"]), beta]
-    mn["length"], mn["beta"] = mn["distance"], beta
+    fresh = _classify(mesh, mn, radius, threshold)
     parts = []
     old = np.zeros((0, 4)) if held is None else np.asarray(held[0], float)
     if old.size and old.ndim == 2 and old.shape[1] >= 4:
-        lam = np.asarray(held[1], float)
-        # each held pair follows the nearest minimum within its radius (one
-        # to one, nearest first)
-        follow = np.full(old.shape[0], -1)
-        if mn["s"].size:
-            dist, j = cKDTree(mkey[:, :2]).query(old[:, :2], p=np.inf)
-            hit = np.flatnonzero(dist <= old[:, 2])
-            hit = hit[np.lexsort((dist[hit], j[hit]))]
-            hit = hit[np.r_[True, j[hit][1:] != j[hit][:-1]]] if hit.size else hit
-            follow[hit] = j[hit]
-        has = follow >= 0
-        sharp = np.zeros(old.shape[0], bool)
-        sharp[has] = fresh[follow[has]]
-        act = (lam > 0) | sharp
-        # sharp minima act at the minimum (both parameters free)
-        i = np.flatnonzero(sharp)
-        fp = {n: a[follow[i]] for n, a in mn.items()}
-        fp["key"] = np.c_[mkey[follow[i]], i]
-        parts.append(fp)
-        # flat minima followed by a loaded pair: at the grid point nearest
-        # the minimum (GRID per element, held); a loaded pair whose minimum
-        # is gone: at its own material point until its multiplier is 0
-        i = np.flatnonzero(act & ~sharp)
-        fl = follow[i]
-        at = old[i, :2].copy()
-        g = fl >= 0
-        eg = mn["e"][fl[g]]
-        ug = np.rint(mn["u"][fl[g]] * GRID) / GRID
-        at[g, 0] = vt[eg] + ug * (vt[eg + 1] - vt[eg])
-        at[g, 1] = mn["s_bar"][fl[g]]
-        hp = _held_pairs(mesh, r, at, exclusion)
-        ok = np.isfinite(hp["distance"]) & (hp["distance"] < reach) & (hp["distance"] > 0)
-        i, fl, hp = i[ok], fl[ok], {n: a[ok] for n, a in hp.items()}
-        hp["length"] = hp["distance"]
-        hp["distance"] = np.where(fl >= 0, np.minimum(hp["distance"], mn["distance"][fl]),
-                                  hp["distance"])
-        hp["beta"] = np.where(fl >= 0, beta[np.maximum(fl, 0)], 0.0)
-        hp["key"] = np.c_[np.where(fl[:, None] >= 0, mkey[np.maximum(fl, 0)],
-                                   np.c_[old[i, :3], np.zeros(i.size)]), i]
-        parts.append(hp)
-        fresh[follow[has]] = False
+        parts += _held_parts(mesh, r, mn, fresh, (old, np.asarray(held[1], float)), reach,
+                             exclusion)
     k = np.flatnonzero(fresh)
     new = {n: a[k] for n, a in mn.items()}
-    new["key"] = np.c_[mkey[k], np.full(k.size, -1.0)]
+    new["key"] = np.c_[mn["mkey"][k], np.full(k.size, -1.0)]
     parts.append(new)
+    return _collect(mesh, r, parts)
+
+
+def _classify(mesh, mn, radius, threshold):
+    """The minima ``mn`` (of :func:`_minima`) sharp enough for a fresh pair
+    (:class:`PairThreshold`); adds to ``mn`` their effective angle
+    ``beta``, the acting ``length`` and the place key ``mkey`` ``(m, 4)``:
+    ``s, s_bar``, the carry radius (the longer element) and ``beta``."""
+    vt = mesh.vertices
+    e, f = mn["e"], mn["f"]
+    hmin = np.minimum(vt[e + 1] - vt[e], vt[f + 1] - vt[f])
+    beta_min = threshold.angle(hmin, radius)
+    beta = np.arcsin(np.sqrt(np.clip(mn["sin2"], 0.0, 1.0)))
+    mn["mkey"] = np.c_[mn["s"], mn["s_bar"], np.maximum(vt[e + 1] - vt[e], vt[f + 1] - vt[f]),
+                       beta]
+    mn["length"], mn["beta"] = mn["distance"], beta
+    return beta >= beta_min
+
+
+def _follow(mkey, old):
+    """Per held pair (key ``old``) the minimum it follows (index into
+    ``mkey``, -1: none): the nearest within its carry radius, in
+    ``(s, s_bar)`` (max norm), one to one, nearest first."""
+    follow = np.full(old.shape[0], -1)
+    if mkey.shape[0]:
+        dist, j = cKDTree(mkey[:, :2]).query(old[:, :2], p=np.inf)
+        hit = np.flatnonzero(dist <= old[:, 2])
+        hit = hit[np.lexsort((dist[hit], j[hit]))]
+        hit = hit[np.r_[True, j[hit][1:] != j[hit][:-1]]] if hit.size else hit
+        follow[hit] = j[hit]
+    return follow
+
+
+def _held_parts(mesh, r, mn, fresh, held, reach, exclusion):
+    """The pairs of the held minima ``held = (key, multipliers)``: those
+    following a sharp minimum act at it (both parameters free), loaded
+    ones on a flat minimum or none at a held material point
+    (:func:`_flat_held`).  A followed minimum is no longer ``fresh``."""
+    old, lam = held
+    follow = _follow(mn["mkey"], old)
+    has = follow >= 0
+    sharp = np.zeros(old.shape[0], bool)
+    sharp[has] = fresh[follow[has]]
+    act = (lam > 0) | sharp
+    # sharp minima act at the minimum (both parameters free)
+    i = np.flatnonzero(sharp)
+    fp = {n: a[follow[i]] for n, a in mn.items()}
+    fp["key"] = np.c_[mn["mkey"][follow[i]], i]
+    hp = _flat_held(mesh, r, mn, old, np.flatnonzero(act & ~sharp), follow, reach, exclusion)
+    fresh[follow[has]] = False
+    return [fp, hp]
+
+
+def _flat_held(mesh, r, mn, old, i, follow, reach, exclusion):
+    """The held pairs ``i`` of keys ``old`` that act held: on a flat
+    minimum followed by a loaded pair at the grid point nearest the minimum
+    (GRID per element); a loaded pair whose minimum is gone at its own
+    material point until its multiplier is 0 (:func:`_held_pairs`)."""
+    vt = mesh.vertices
+    fl = follow[i]
+    at = old[i, :2].copy()
+    g = fl >= 0
+    eg = mn["e"][fl[g]]
+    ug = np.rint(mn["u"][fl[g]] * GRID) / GRID
+    at[g, 0] = vt[eg] + ug * (vt[eg + 1] - vt[eg])
+    at[g, 1] = mn["s_bar"][fl[g]]
+    hp = _held_pairs(mesh, r, at, exclusion)
+    ok = np.isfinite(hp["distance"]) & (hp["distance"] < reach) & (hp["distance"] > 0)
+    i, fl, hp = i[ok], fl[ok], {n: a[ok] for n, a in hp.items()}
+    hp["length"] = hp["distance"]
+    hp["distance"] = np.where(fl >= 0, np.minimum(hp["distance"], mn["distance"][fl]),
+                              hp["distance"])
+    hp["beta"] = np.where(fl >= 0, mn["beta"][np.maximum(fl, 0)], 0.0)
+    hp["key"] = np.c_[np.where(fl[:, None] >= 0, mn["mkey"][np.maximum(fl, 0)],
+                               np.c_[old[i, :3], np.zeros(i.size)]), i]
+    return hp
+
+
+def _collect(mesh, r, parts):
+    """The :class:`CrossingPairs` of the ``parts`` (dicts of per-pair
+    arrays), in order, with the tangents' ``|cos|`` at the pairs."""
     cat = lambda n: np.concatenate([p[n] for p in parts])                   # noqa: E731
     e, f, u, v = cat("e"), cat("f"), cat("u"), cat("v")
     length = cat("length")
