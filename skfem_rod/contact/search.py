@@ -329,6 +329,22 @@ def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BR
     return i[keep], j[keep]
 
 
+@dataclass(frozen=True)
+class _Query:
+    """One search: the slave points (positions ``x`` ``(n, 3)`` and ``xT``
+    ``(3, n)``, arclengths ``s`` ``(n,)``), the element curves (monomial
+    coefficients ``C`` ``(4, 3, ne)``, ``vertices``), the arclength
+    ``period`` (None: open rod), ``reach`` and ``exclusion``."""
+    x: np.ndarray
+    xT: np.ndarray
+    s: np.ndarray
+    C: np.ndarray
+    vertices: np.ndarray
+    period: object
+    reach: float
+    exclusion: float
+
+
 def search(mesh, r, slaves, reach, exclusion):
     """All slave/master pairs with a centreline distance below ``reach``.
 
@@ -359,60 +375,87 @@ def search(mesh, r, slaves, reach, exclusion):
     cannot be closer), at a cost per slave that does not grow under mesh
     refinement.
     """
-    ne, ns = slaves.s.shape
-    period = arclength_period(mesh)
-    v = mesh.vertices
     r_el = r[mesh.nodes]                                     # (ne, 4, 3)
-    C = monomial_coefficients(r_el).transpose(1, 2, 0)               # (4, 3, ne)
     x = np.einsum("qI,eIc->eqc", slaves.N, r_el).reshape(-1, 3)
-    s_sl = slaves.s.ravel()
-    p0, p1, dev = _capsules(r_el)                            # sub-arc capsules
-    i, j = _broad_phase(x, s_sl, r_el, v, reach, exclusion, period)
-    order = np.lexsort((j, i))                               # deterministic order
-    i, j = i[order], j[order]
-    # lower bound of the distance: to the nearest sub-arc capsule
-    xT = np.ascontiguousarray(x.T)
-    xi_ = xT[:, i]
-    lb = np.full(i.size, np.inf)
-    for q in range(p0.shape[1]):
-        dq, _ = _segment_distance(xi_, np.ascontiguousarray(p0[:, q].T)[:, j],
-                                  np.ascontiguousarray(p1[:, q].T)[:, j])
-        np.minimum(lb, dq - dev[j, q], out=lb)
-    keep = lb < reach
-    i, j, lb = i[keep], j[keep], lb[keep]
+    q = _Query(x=x, xT=np.ascontiguousarray(x.T), s=slaves.s.ravel(),
+               C=monomial_coefficients(r_el).transpose(1, 2, 0),      # (4, 3, ne)
+               vertices=mesh.vertices, period=arclength_period(mesh), reach=reach,
+               exclusion=exclusion)
+    i, j, lb = _candidates(q, r_el)
     if i.size == 0:
         return _empty(0)
-    outside = _outside_exclusion(v[j], v[j + 1], s_sl[i], exclusion, period)
+    found, n_cand = _narrow_phase(q, i, j, lb)
+    if found[0].size == 0:
+        return _empty(n_cand)
+    return _closest(q, slaves, i, j, found, n_cand)
+
+
+def _candidates(q, r_el):
+    """Candidate (slave ``i``, element ``j``) pairs of the broad phase in a
+    deterministic order, with ``lb``, a lower bound of their distance (to
+    the nearest sub-arc capsule, :func:`_capsules`), below ``reach``."""
+    p0, p1, dev = _capsules(r_el)                            # sub-arc capsules
+    i, j = _broad_phase(q.x, q.s, r_el, q.vertices, q.reach, q.exclusion, q.period)
+    order = np.lexsort((j, i))                               # deterministic order
+    i, j = i[order], j[order]
+    xi_ = q.xT[:, i]
+    lb = np.full(i.size, np.inf)
+    for k in range(p0.shape[1]):
+        dq, _ = _segment_distance(xi_, np.ascontiguousarray(p0[:, k].T)[:, j],
+                                  np.ascontiguousarray(p1[:, k].T)[:, j])
+        np.minimum(lb, dq - dev[j, k], out=lb)
+    keep = lb < q.reach
+    return i[keep], j[keep], lb[keep]
+
+
+def _project_candidates(q, i, j, k):
+    """Projections of the candidates ``k`` (slave ``i[k]`` on element
+    ``j[k]``), the admissible ones: ``(k, xi, interior, s_bar, dvec,
+    dist)``."""
+    jk = j[k]
+    v = q.vertices
+    xi, interior, y = _project(q.xT[:, i[k]], q.C[:, :, jk])
+    s_bar = v[jk] + xi * (v[jk + 1] - v[jk])
+    dvec = (q.xT[:, i[k]] - y).T
+    dist = np.linalg.norm(dvec, axis=1)
+    ok = ((arc_distance(s_bar, q.s[i[k]], q.period) >= q.exclusion) & (dist < q.reach)
+          & (dist > 0))
+    return k[ok], xi[ok], interior[ok], s_bar[ok], dvec[ok], dist[ok]
+
+
+def _narrow_phase(q, i, j, lb):
+    """Branch and bound per slave: the candidate with the smallest bound
+    (elements wholly outside the exclusion first) projected, then those
+    whose bound is below the closest admissible distance found.  Returns
+    the admissible projections (:func:`_project_candidates`, both passes)
+    and the number of candidates projected."""
+    v = q.vertices
+    outside = _outside_exclusion(v[j], v[j + 1], q.s[i], q.exclusion, q.period)
     order = np.lexsort((lb, ~outside, i))
     first = order[np.r_[True, i[order][1:] != i[order][:-1]]]
-
-    def narrow(k):
-        jk = j[k]
-        xi, interior, y = _project(xT[:, i[k]], C[:, :, jk])
-        s_bar = v[jk] + xi * (v[jk + 1] - v[jk])
-        dvec = (xT[:, i[k]] - y).T
-        dist = np.linalg.norm(dvec, axis=1)
-        ok = (arc_distance(s_bar, s_sl[i[k]], period) >= exclusion) & (dist < reach) & (dist > 0)
-        return k[ok], xi[ok], interior[ok], s_bar[ok], dvec[ok], dist[ok]
-
-    r1 = narrow(first)
-    best = np.full(ne * ns, np.inf)
+    r1 = _project_candidates(q, i, j, first)
+    best = np.full(q.s.size, np.inf)
     best[i[r1[0]]] = r1[5]
     rest = np.ones(i.size, bool)
     rest[first] = False
     rest &= lb <= best[i] * (1.0 + 1e-10)
     second = np.flatnonzero(rest)
-    n_cand = first.size + second.size
-    r2 = narrow(second)
-    k, xi, interior, s_bar, dvec, dist = (np.concatenate([u, w]) for u, w in zip(r1, r2))
-    if k.size == 0:
-        return _empty(n_cand)
+    r2 = _project_candidates(q, i, j, second)
+    found = tuple(np.concatenate([u, w]) for u, w in zip(r1, r2))
+    return found, first.size + second.size
+
+
+def _closest(q, slaves, i, j, found, n_cand):
+    """The :class:`Pairs`: per slave the closest admissible projection of
+    ``found`` (:func:`_narrow_phase`)."""
+    ns = slaves.s.shape[1]
+    k, xi, interior, s_bar, dvec, dist = found
     ik = i[k]
     order = np.lexsort((k, dist, ik))        # ties: first candidate, as a full pass would
     sel = order[np.r_[True, ik[order][1:] != ik[order][:-1]]]
     isel = ik[sel]
     return Pairs(slave=isel, s_elem=isel // ns, s_xi=slaves.xi[isel % ns], m_elem=j[k[sel]],
-                 m_xi=xi[sel], s=s_sl[isel], s_bar=s_bar[sel], distance=dist[sel],
+                 m_xi=xi[sel], s=q.s[isel], s_bar=s_bar[sel], distance=dist[sel],
                  normal=dvec[sel] / dist[sel, None], interior=interior[sel],
                  weight=slaves.w.ravel()[isel], n_candidates=n_cand)
 
