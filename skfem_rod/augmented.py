@@ -65,7 +65,6 @@ def augmented_lagrangian(problem, solve_pass):
     last = np.full(problem.multipliers.normal.size, np.inf)   # violations of the last pass
     last_moved = np.inf
     previous = None
-    tol = c.tolerance * c.radius
     while True:
         r, R, lam, rep = solve_pass(previous)
         total += rep.iterations
@@ -75,59 +74,25 @@ def augmented_lagrangian(problem, solve_pass):
             return r, R, lam, rep
         previous = (r, R, lam)
         ce = rep.evaluation.contact
-        pairs, fN = ce.pairs, ce.fN
-        d = gap(pairs.distance, c.radius)
-        pen = float(d.max(initial=0.0))
-        # complementarity too: no force where the gap is open beyond the
-        # tolerance (a multiplier left over from a higher load pushes apart)
-        opened = float(np.max(-d[fN > 0], initial=0.0))
-        done = pen <= tol and opened <= tol
+        pen, opened, d, dc = violations(problem, ce)
+        done = pen <= c.tolerance * c.radius and opened <= c.tolerance * c.radius
         m = problem.multipliers
-        if ce.crossing is not None:                  # point pairs of crossing strands
-            dc = gap(ce.crossing.distance, c.radius)
-            pen = max(pen, float(dc.max(initial=0.0)))
-            opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
-            done = pen <= tol and opened <= tol
         if problem.friction:
             moved, lam_T, lam_R = friction_update(problem, ce.friction)
             rep.friction_moved = moved
             done = done and moved <= c.friction_tolerance
         if done or uzawa == c.max_uzawa:
-            scale = float(m.penalty_scale.max(initial=1.0))
-            if not done:
-                rep.uzawa_note = (
-                    f"Uzawa stopped after {uzawa} updates with penetration {pen:.3e} "
-                    f"and open gap under force {opened:.3e} (tolerance {tol:.3e})"
-                    + (f" and friction multipliers moving by {rep.friction_moved:.3e} "
-                       f"gamma f_N (tolerance {c.friction_tolerance:g})"
-                       if problem.friction else "")
-                    + (f"; penalty raised up to {scale:.3g} times" if scale > 1 else ""))
-            # back to the nominal penalty: at the converged multipliers the
-            # state is an equilibrium for any penalty (to the tolerances), and
-            # the stability check and the next step see the nominal tangent
-            problem.multipliers = m.nominal_penalty()
             rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
-            rep.uzawa_converged, rep.penalty_scale = done, scale
-            true_distance(problem, r, rep)
-            over = true_overlap(problem, rep)
-            if over > OVERLAP_FAIL * c.radius and not at_an_end(problem, rep):
-                fail_overlap(problem, rep)
-                problem.multipliers = saved
-            elif over > tol:
-                s, s_bar = rep.min_distance_at
-                where = "an end of the rod overlaps" if at_an_end(problem, rep) else \
-                    "the strands overlap between slave points"
-                rep.uzawa_note = (rep.uzawa_note + "; " if rep.uzawa_note else "") + (
-                    f"{where} by {over / c.radius:.3g} eps (s = {s:.6g}, {s_bar:.6g}; "
-                    f"tolerance {c.tolerance:g} eps)")
+            rep.uzawa_converged = done
+            finish(problem, r, rep, opened, saved)
             return r, R, lam, rep
-        mu = c.penalty / m.penalty_scale[pairs.slave]
+        mu = c.penalty / m.penalty_scale[ce.pairs.slave]
         new = np.zeros_like(m.normal)
-        new[pairs.slave] = uzawa_update(d, m.normal[pairs.slave], mu)
+        new[ce.pairs.slave] = uzawa_update(d, m.normal[ce.pairs.slave], mu)
         if c.penalty_growth > 1:
             if problem.friction:
-                last_moved = adapt_friction_penalty(problem, fN, new, moved, last_moved)
-            last = adapt_penalty(problem, pairs, d, fN, new, last)
+                last_moved = adapt_friction_penalty(problem, ce.fN, new, moved, last_moved)
+            last = adapt_penalty(problem, ce.pairs, d, ce.fN, new, last)
         m.normal = new
         if problem.friction:
             m.tangential, m.rotational = lam_T, lam_R
@@ -135,6 +100,61 @@ def augmented_lagrangian(problem, solve_pass):
             old = carry_crossing(m, ce.crossing)
             m.crossing_key, m.crossing = ce.crossing.key, uzawa_update(dc, old, c.crossing_penalty)
         uzawa += 1
+
+
+def violations(problem, ce):
+    """The contact tolerances' measures at the contact evaluation ``ce``:
+    the largest penetration and the largest open gap under force (a
+    multiplier left over from a higher load pushes apart), over the slave
+    pairs and the crossing pairs.  Returns ``(penetration, opened, d, dc)``
+    with the gaps ``d`` of the slave pairs and ``dc`` of the crossing pairs
+    (None without)."""
+    c = problem.contact
+    d = gap(ce.pairs.distance, c.radius)
+    pen = float(d.max(initial=0.0))
+    opened = float(np.max(-d[ce.fN > 0], initial=0.0))
+    dc = None
+    if ce.crossing is not None:                  # point pairs of crossing strands
+        dc = gap(ce.crossing.distance, c.radius)
+        pen = max(pen, float(dc.max(initial=0.0)))
+        opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
+    return pen, opened, d, dc
+
+
+def finish(problem, r, rep, opened, saved):
+    """The end of the loop at the state ``r`` (the report ``rep`` holds the
+    loop's figures): the note when Uzawa stopped short, the multipliers
+    back to the nominal penalty, the true distance between strands; a true
+    overlap beyond :data:`OVERLAP_FAIL` fails the step (multipliers put
+    back to ``saved``), one beyond the tolerance is noted."""
+    c, m = problem.contact, problem.multipliers
+    tol = c.tolerance * c.radius
+    scale = float(m.penalty_scale.max(initial=1.0))
+    if not rep.uzawa_converged:
+        rep.uzawa_note = (
+            f"Uzawa stopped after {rep.uzawa} updates with penetration {rep.penetration:.3e} "
+            f"and open gap under force {opened:.3e} (tolerance {tol:.3e})"
+            + (f" and friction multipliers moving by {rep.friction_moved:.3e} "
+               f"gamma f_N (tolerance {c.friction_tolerance:g})"
+               if problem.friction else "")
+            + (f"; penalty raised up to {scale:.3g} times" if scale > 1 else ""))
+    # back to the nominal penalty: at the converged multipliers the state is
+    # an equilibrium for any penalty (to the tolerances), and the stability
+    # check and the next step see the nominal tangent
+    problem.multipliers = m.nominal_penalty()
+    rep.penalty_scale = scale
+    true_distance(problem, r, rep)
+    over = true_overlap(problem, rep)
+    if over > OVERLAP_FAIL * c.radius and not at_an_end(problem, rep):
+        fail_overlap(problem, rep)
+        problem.multipliers = saved
+    elif over > tol:
+        s, s_bar = rep.min_distance_at
+        where = "an end of the rod overlaps" if at_an_end(problem, rep) else \
+            "the strands overlap between slave points"
+        rep.uzawa_note = (rep.uzawa_note + "; " if rep.uzawa_note else "") + (
+            f"{where} by {over / c.radius:.3g} eps (s = {s:.6g}, {s_bar:.6g}; "
+            f"tolerance {c.tolerance:g} eps)")
 
 
 def step(problem, r, R, lam, prescribed, opts, inner=None):

@@ -51,7 +51,7 @@ from .augmented import augmented_lagrangian
 from .kinematics import ElementRotationError
 from .newton import Border, Report, newton
 from .options import make_options
-from .problem import Problem
+from .problem import Increment, Problem, State
 from .results import Result
 from .stability import modes
 from .validation import count, positive
@@ -176,21 +176,23 @@ class Follower:
             ty, tl = -ty, -tl
         return ty, tl
 
-    def correct(self, r, R, lam, w, wl, target, pred_y, pred_l):
-        """Newton on ``G(y, lam) = 0`` and ``<w, Dy> + wl Dlam = target``
-        (``w`` already weighted) from the base point ``(r, R, lam)`` moved
-        by the predictor ``(pred_y, pred_l)``.  Returns ``(r, R, lam,
+    def correct(self, base, arc, pred):
+        """Newton on ``G(y, lam) = 0`` and the :class:`Arclength` equation
+        ``arc`` (``w`` already weighted) from the base point ``base`` (a
+        :class:`~skfem_rod.problem.State`) moved by the predictor ``pred``
+        (an :class:`~skfem_rod.problem.Increment`).  Returns ``(r, R, lam,
         report)``."""
         p = self.problem
+        r, R, lam = base
         try:
-            r1, R1 = p.update(r, R, pred_y, 1.0)
+            r1, R1 = p.update(r, R, pred.dy, 1.0)
         except ElementRotationError as err:
             return r, R, lam, Report(False, reason=str(err))
-        border = Border(w=w, wl=wl, target=target, Dy=pred_y.copy(), Dl=float(pred_l),
-                        p=self.pfix)
-        return newton(p, r1, R1, lam + pred_l, self.opts, border=border)
+        border = Border(w=arc.w, wl=arc.wl, target=arc.target, Dy=pred.dy.copy(),
+                        Dl=float(pred.dl), p=self.pfix)
+        return newton(p, r1, R1, lam + pred.dl, self.opts, border=border)
 
-    def step(self, r, R, lam, w, wl, target, pred_y, pred_l):
+    def step(self, base, arc, pred):
         """:meth:`correct` inside the augmented-Lagrangian loop (contact on):
         every pass re-solves from the base point with the last converged
         increment as its predictor.  A converged step is committed (the
@@ -199,10 +201,10 @@ class Follower:
 
         def solve_pass(previous):
             if previous is None:
-                return self.correct(r, R, lam, w, wl, target, pred_y, pred_l)
+                return self.correct(base, arc, pred)
             r1, R1, lam1 = previous
-            return self.correct(r, R, lam, w, wl, target, p.increment(r1, R1, r, R),
-                                lam1 - lam)
+            return self.correct(base, arc, Increment(p.increment(r1, R1, base.r, base.R),
+                                                     lam1 - base.lam))
 
         return augmented_lagrangian(p, solve_pass)
 
@@ -211,8 +213,8 @@ class Follower:
 
     def corrector(self, p, h):
         """:meth:`step` along the tangent of the point ``p`` by arclength ``h``."""
-        return self.step(p.r, p.R, p.lam, self.D2 * p.ty, self.psi2 * p.tl, h, h * p.ty,
-                         h * p.tl)
+        return self.step(State(p.r, p.R, p.lam), Arclength(self.D2 * p.ty, self.psi2 * p.tl, h),
+                         Increment(h * p.ty, h * p.tl))
 
     def advance(self, p, ds, lam_stop):
         """One continuation step from the point ``p``: tangent predictor
@@ -227,8 +229,9 @@ class Follower:
         if info.converged and lam_stop is not None and \
                 (p.lam - lam_stop) * (lam1 - lam_stop) < 0:
             frac = (lam_stop - p.lam) / (lam1 - p.lam)
-            r1, R1, lam1, info = self.step(p.r, p.R, p.lam, np.zeros_like(p.ty), 1.0,
-                                           lam_stop - p.lam, frac * h * p.ty, frac * h * p.tl)
+            r1, R1, lam1, info = self.step(State(p.r, p.R, p.lam),
+                                           Arclength(np.zeros_like(p.ty), 1.0, lam_stop - p.lam),
+                                           Increment(frac * h * p.ty, frac * h * p.tl))
             land = info.converged
             h = frac * h
         if not info.converged:
@@ -254,6 +257,14 @@ class Follower:
             result._index.append(-1)
         if self.callback is not None:
             self.callback(result, len(result.steps) - 1)
+
+
+class Arclength(NamedTuple):
+    """The corrector's extra equation ``<w, Dy> + wl Dlam = target``
+    (``w`` already carries the metric)."""
+    w: np.ndarray
+    wl: float
+    target: float
 
 
 class Point(NamedTuple):

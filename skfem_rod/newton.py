@@ -29,6 +29,7 @@ from .kinematics import ElementRotationError
 # Report, the position correction and its threshold live in problem.py
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
+from .problem import Increment, State, update_size
 from .problem import failed as _fail
 
 
@@ -48,17 +49,38 @@ class Border:
     def residual(self):
         return float(np.dot(self.w, self.Dy) + self.wl * self.Dl - self.target)
 
+    def update(self, problem, solve, K, R, dy):
+        """The bordered update: ``dy`` plus ``dl`` times ``xq = dy/dlam``
+        (a second back substitution of the same factor), ``dl`` from the
+        arclength equation.  Returns an :class:`Increment`, or None when the
+        bordered system is singular."""
+        xq = solve(problem.load_rate(R) - K @ self.p) + self.p
+        den = float(np.dot(self.w, xq) + self.wl)
+        if not np.isfinite(den) or den == 0.0:
+            return None
+        dl = -(self.residual() + np.dot(self.w, dy)) / den
+        return Increment(dy + dl * xq, dl)
 
-def safeguarded_update(problem, r, R, lam, dy, dl, opts, bound, rn):
-    """The trial ``y (+) alpha dy``, ``lam + alpha dl``: ``alpha`` starts
-    where no spin exceeds ``max_spin_update`` (with ``line_search``) and is
-    halved (at most ``max_backtracks`` times) while the trial would leave
-    an element chart, carry a strand through another (``clearance_cap``
-    with contact), or give a non-finite residual or one above ``bound``.
-    A trial that raised the residual norm ``rn`` more than
+    def advance(self, alpha, inc):
+        """Accumulate the taken step ``alpha inc``."""
+        self.Dy = self.Dy + alpha * inc.dy
+        self.Dl = self.Dl + alpha * inc.dl
+
+
+def safeguarded_update(problem, at, inc, opts, bound, rn):
+    """The trial ``y (+) alpha dy``, ``lam + alpha dl`` from the
+    :class:`~skfem_rod.problem.State` ``at`` along the
+    :class:`~skfem_rod.problem.Increment` ``inc``: ``alpha`` starts where no
+    spin exceeds ``max_spin_update`` (with ``line_search``) and is halved
+    (at most ``max_backtracks`` times) while the trial would leave an
+    element chart, carry a strand through another (``clearance_cap`` with
+    contact), or give a non-finite residual or one above ``bound``.  A
+    trial that raised the residual norm ``rn`` more than
     :data:`CORRECT_ABOVE` times gets its position correction first
     (``position_correction``).  Returns ``((r, R, evaluation) or None,
     alpha, why)``."""
+    r, R, lam = at
+    dy, dl = inc
     alpha, why = 1.0, "residual grew too much"
     if opts.line_search:
         spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
@@ -114,11 +136,9 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         from .nonsmooth import contact_newton
         return contact_newton(problem, r, R, lam, opts, prescribed)
     fixed = problem.fixed
-    n = problem.mesh.n_dofs
-    remaining = np.zeros(n) if prescribed is None else prescribed.copy()
+    remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
     history = []
     last_update = np.inf
-    length = problem.rod.length
     try:
         ev = problem.evaluate(r, R, lam)
     except ElementRotationError as err:
@@ -143,29 +163,23 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         except RuntimeError as err:                      # singular factor
             return _fail(r, R, lam, history, it, f"singular tangent ({err})", ev)
         dy[fixed] = remaining[fixed]
-        dl = 0.0
-        if border is not None:
-            xq = solve(problem.load_rate(R) - K @ border.p) + border.p
-            den = float(np.dot(border.w, xq) + border.wl)
-            if not np.isfinite(den) or den == 0.0:
-                return _fail(r, R, lam, history, it, "singular bordered system", ev)
-            dl = -(border.residual() + np.dot(border.w, dy)) / den
-            dy = dy + dl * xq
-        if not np.all(np.isfinite(dy)):
+        inc = Increment(dy) if border is None else border.update(problem, solve, K, R, dy)
+        if inc is None:
+            return _fail(r, R, lam, history, it, "singular bordered system", ev)
+        if not np.all(np.isfinite(inc.dy)):
             return _fail(r, R, lam, history, it, "non-finite Newton update", ev)
         bound = np.inf if (not opts.line_search or np.any(remaining)) \
             else opts.max_growth * max(rn, scale)
-        accepted, alpha, why = safeguarded_update(problem, r, R, lam, dy, dl, opts, bound, rn)
+        accepted, alpha, why = safeguarded_update(problem, State(r, R, lam), inc, opts,
+                                                  bound, rn)
         if accepted is None:
             return _fail(r, R, lam, history, it + 1,
                          f"no admissible update after {opts.max_backtracks} halvings: {why}", ev)
         r, R, ev = accepted
-        lam = lam + alpha * dl
+        lam = lam + alpha * inc.dl
         if border is not None:
-            border.Dy = border.Dy + alpha * dy
-            border.Dl = border.Dl + alpha * dl
-        upd = (alpha * dy).reshape(-1, 6)
-        last_update = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max()))
+            border.advance(alpha, inc)
+        last_update = update_size(problem, alpha * inc.dy)
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
     return _fail(r, R, lam, history, opts.max_iterations,

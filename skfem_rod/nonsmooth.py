@@ -48,6 +48,8 @@ In plain sight::
         y <- y (+) alpha dy,  lambda <- lambda + alpha dl
 """
 import time
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -56,7 +58,8 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .contact.law import gap
 from .kinematics import ElementRotationError
-from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction
+from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
+from .problem import position_correction, update_size
 from .problem import failed as _fail
 
 #: Armijo's sufficient decrease of the merit |(G, C)| per unit step
@@ -78,15 +81,32 @@ ESCAPES = 2
 MEMORY = 1
 
 
+@dataclass
 class ContactState:
     """Residuals and the generalized Jacobian's contact blocks at an
-    evaluation (:func:`contact_blocks`)."""
+    evaluation (:func:`contact_blocks`; the blocks None without the
+    Jacobian)."""
+    G: np.ndarray
+    C: np.ndarray
+    K_ly: object
+    K_yl: object
+    D: np.ndarray
+    active: np.ndarray
+    penetration: float
+    opened: float
+    merit: float
 
-    def __init__(self, G, C, K_ly, K_yl, D, active, penetration, opened, merit):
-        self.G, self.C = G, C
-        self.K_ly, self.K_yl, self.D = K_ly, K_yl, D
-        self.active, self.penetration, self.opened, self.merit = \
-            active, penetration, opened, merit
+
+class Merit(NamedTuple):
+    """What the line search compares a trial's merit with: the last
+    iterate's ``last``, the ``reference`` of Armijo's test, the force
+    ``scale``, the ``weight`` of ``C`` in the merit (0 when polishing) and
+    ``first`` (the step's first iterations: plain Newton's safeguard)."""
+    last: float
+    reference: float
+    scale: float
+    weight: float
+    first: bool
 
 
 def contact_blocks(problem, ev, jacobian=True, weight=1.0):
@@ -201,16 +221,10 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
     held (the contact tolerances met; None if never), ``report.step_lengths``
     the line search's ``alpha`` per iteration."""
     c, m = problem.contact, problem.multipliers
-    n = problem.mesh.n_dofs
-    remaining = np.zeros(n) if prescribed is None else prescribed.copy()
-    history, complementarity, alphas = [], [], []
-    length = problem.rod.length
+    remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
+    history, complementarity, alphas, merits = [], [], [], []
     tol = c.tolerance * c.radius
-    last_update = np.inf
-    polish = polished = False
-    polished_from = None
-    escapes = 0
-    merits = []
+    last_update, polish, polished_from, escapes = np.inf, False, None, 0
     try:
         ev = problem.evaluate(r, R, lam)
     except ElementRotationError as err:
@@ -219,8 +233,7 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
         scale = problem.force_scale(ev)
         if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
             return _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
-        weight = 0.0 if polish else 1.0
-        cs = contact_blocks(problem, ev, weight=weight)
+        cs = contact_blocks(problem, ev, weight=0.0 if polish else 1.0)
         rn = problem.residual_norm(ev)
         history.append(rn)
         complementarity.append(float(np.linalg.norm(cs.C)))
@@ -228,36 +241,33 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
         tolerances = cs.penetration <= tol and cs.opened <= tol
         if not np.any(remaining) and (tolerances or polish) and (
                 rn <= opts.rtol * scale or last_update <= opts.increment_tol):
-            rep = Report(True, iterations=it, history=history, evaluation=ev)
-            rep.complementarity, rep.polished_from = complementarity, polished_from
-            rep.step_lengths = alphas
-            return r, R, lam, rep
+            return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev,
+                                     complementarity=complementarity,
+                                     polished_from=polished_from, step_lengths=alphas)
         if it == opts.max_iterations:
             break
         # the contact tolerances hold: the multipliers are kept, Newton
         # polishes the equilibrium at them (the Uzawa loop's last pass)
         polish = polish or (tolerances and not np.any(remaining)
                             and rn <= POLISH_BELOW * scale)
-        if polish:
-            weight = 0.0
+        if polish and polished_from is None:
+            polished_from, merits = it, [rn]
         try:
             dy, dl = solve_step(problem, ev, cs, remaining, polish)
         except RuntimeError as err:
             return _fail(r, R, lam, history, it, f"singular generalized Jacobian ({err})", ev)
         if not (np.all(np.isfinite(dy)) and np.all(np.isfinite(dl))):
             return _fail(r, R, lam, history, it, "non-finite Newton update", ev)
-        if polish and not polished:
-            merits, polished, polished_from = [rn], True, it
-        reference = max(merits[-MEMORY:])
-        first = it < 2 or bool(np.any(remaining))
-        accepted, alpha, why = line_search(problem, r, R, lam, dy, dl, merits[-1], reference,
-                                           scale, opts, first, weight)
+        merit = Merit(merits[-1], max(merits[-MEMORY:]), scale, 0.0 if polish else 1.0,
+                      it < 2 or bool(np.any(remaining)))
+        at, inc = State(r, R, lam), Increment(dy, dl)
+        accepted, alpha, why = line_search(problem, at, inc, merit, opts)
         if accepted is None and escapes < ESCAPES:
             # a kink of C between the iterate and every trial (a contact
             # that must open seen from its active branch): take the largest
             # admissible trial, at most ESCAPES times a solve (so no cycle)
-            accepted, alpha, why = line_search(problem, r, R, lam, dy, dl, merits[-1],
-                                               reference, scale, opts, True, weight)
+            accepted, alpha, why = line_search(problem, at, inc, merit._replace(first=True),
+                                               opts)
             escapes += 1
         if accepted is None and tolerances and not polish and not np.any(remaining):
             # the merit cannot fall below the mismatch of the two slave
@@ -268,14 +278,13 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
             return _fail(r, R, lam, history, it + 1,
                          f"no admissible update after {opts.max_backtracks} halvings: {why}",
                          ev)
-        r, R, ev, lam_N = accepted
-        m.normal = lam_N
+        r, R, ev, m.normal = accepted
         if ev.tangent is None:
             ev = problem.evaluate(r, R, lam)
         alphas.append(alpha)
-        upd = (alpha * dy).reshape(-1, 6)
-        last_update = float(max(np.abs(upd[:, :3]).max() / length, np.abs(upd[:, 3:]).max(),
-                                float(np.abs(alpha * dl).max(initial=0.0)) * c.penalty / length))
+        last_update = max(update_size(problem, alpha * dy),
+                          float(np.abs(alpha * dl).max(initial=0.0)) * c.penalty
+                          / problem.rod.length)
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
     return _fail(r, R, lam, history, opts.max_iterations,
@@ -283,16 +292,19 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
                  f"(merit {history[-1]:.3e})", ev)
 
 
-def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first, weight):
-    """Backtracking on the merit ``|(G_free, weight C)|``; returns
-    ``((r, R, evaluation, lambda_N) or None, alpha, why)``.
+def line_search(problem, at, inc, merit, opts):
+    """Backtracking on the merit ``|(G_free, weight C)|`` from the
+    :class:`~skfem_rod.problem.State` ``at`` along the
+    :class:`~skfem_rod.problem.Increment` ``inc`` (``dl``: the normal
+    multipliers' update), compared with the :class:`Merit` ``merit``;
+    returns ``((r, R, evaluation, lambda_N) or None, alpha, why)``.
 
     Armijo's test against ``reference``, the largest merit of the last
     :data:`MEMORY` iterates (``MEMORY = 1``: monotone; a memory of 4, the
     non-monotone test of Grippo, Lampariello & Lucidi 1986, let the
     rotational-friction scene 2-cycle 8.6e-3 <-> 4.3e-3 for 6 iterations at
     a stick/slip switch, each return a hair below the memory's maximum).
-    A trial above :data:`CORRECT_ABOVE` times ``merit`` (the last one) gets
+    A trial above :data:`CORRECT_ABOVE` times ``last`` (the last merit) gets
     plain Newton's position correction first.  When no halving passes:
     ``first`` (the step's first iterations, the prescribed motion being
     applied) takes the largest trial whose merit is below ``max_growth``
@@ -302,12 +314,15 @@ def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first
     """
     m = problem.multipliers
     lam0 = m.normal
+    r, R, lam = at
+    dy, dl = inc
+    reference, weight = merit.reference, merit.weight
     alpha, why = 1.0, "the merit did not fall"
     spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
     if opts.line_search:
         alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
     alpha0 = alpha
-    bound = opts.max_growth * max(reference, scale)
+    bound = opts.max_growth * max(reference, merit.scale)
     best = None
     cap = opts.clearance_cap
     for _ in range(opts.max_backtracks + 1):
@@ -323,7 +338,7 @@ def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first
             # iteration's; halved trials get theirs once taken
             ev_t = problem.evaluate(r_t, R_t, lam, tangent=alpha == alpha0)
             mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
-            if np.isfinite(mt) and opts.position_correction and mt > CORRECT_ABOVE * merit:
+            if np.isfinite(mt) and opts.position_correction and mt > CORRECT_ABOVE * merit.last:
                 # as plain Newton (skfem_rod.problem.position_correction)
                 if ev_t.tangent is None:
                     ev_t = problem.evaluate(r_t, R_t, lam)
@@ -341,7 +356,7 @@ def line_search(problem, r, R, lam, dy, dl, merit, reference, scale, opts, first
             trial = ((r_t, R_t, ev_t, lam_t), alpha, "")
             if not opts.line_search or mt <= (1 - ARMIJO * alpha) * reference:
                 return trial
-            if first and mt <= bound:
+            if merit.first and mt <= bound:
                 return trial
             if mt < reference and (best is None or mt < best[0]):
                 best = (mt, trial)

@@ -26,6 +26,7 @@ the inverse, the increment between two states, is
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -383,6 +384,29 @@ class Problem:
 #: a position correction follows a Newton update that raised the residual
 #: norm by more than this factor (:func:`position_correction`)
 CORRECT_ABOVE = 10.0
+
+
+class State(NamedTuple):
+    """A configuration ``(r, R)`` at load factor ``lam``: where a Newton
+    iteration stands."""
+    r: np.ndarray
+    R: np.ndarray
+    lam: float
+
+
+class Increment(NamedTuple):
+    """A Newton update: ``dy`` (dof basis) and ``dl``, the load factor's
+    (bordered continuation) or the normal multipliers' (generalized Newton)."""
+    dy: np.ndarray
+    dl: object = 0.0
+
+
+def update_size(problem, dy):
+    """The size of an applied update ``dy`` (dof basis): the largest nodal
+    move over the rod's length, or the largest spin (rad); Newton stops
+    when it falls below ``increment_tol``."""
+    upd = dy.reshape(-1, 6)
+    return float(max(np.abs(upd[:, :3]).max() / problem.rod.length, np.abs(upd[:, 3:]).max()))
 
 
 @dataclass

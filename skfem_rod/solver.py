@@ -162,17 +162,20 @@ class LoadStepper:
             r_p, R_p = self.secant(r, R, prev, (lam_new - lam) / (lam - prev[0]))
         r1, R1, rep = step(p, r_p, R_p, lam_new, presc, opts)
         if opts.snap == "relax" or opts.stability:
-            r1, R1, rep = self.snap(r, R, lam_new, presc, r1, R1, rep, saved)
+            r1, R1, rep = self.snap(r, R, lam_new, presc, (r1, R1, rep), saved)
             rep.flow_steps = p.calls["flow_steps"] - flows
         return r1, R1, rep
 
-    def snap(self, r, R, lam_new, presc, r1, R1, rep, saved):
-        """Options ``snap="relax"`` and ``stability``: relax (gradient flow)
-        when the Newton step failed or moved strands by more than half their
-        clearance (a possible passage of one strand through another) or,
-        with the stability check, when it converged to an unstable
-        equilibrium (pushed off along the unstable mode first)."""
+    def snap(self, r, R, lam_new, presc, trial, saved):
+        """Options ``snap="relax"`` and ``stability`` on the ``trial =
+        (r1, R1, report)`` of the step from ``(r, R)`` to ``lam_new``: relax
+        (gradient flow) when the Newton step failed or moved strands by more
+        than half their clearance (a possible passage of one strand through
+        another) or, with the stability check, when it converged to an
+        unstable equilibrium (pushed off along the unstable mode first).
+        ``saved``: the multipliers before the step."""
         p, opts, log = self.problem, self.opts, self.result.log
+        r1, R1, rep = trial
         relax = opts.snap == "relax"
         if rep.converged and relax and not clearance_ok(self.rod, r, r1):
             rep.converged = False
