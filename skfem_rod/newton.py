@@ -123,16 +123,16 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         basis), or None.
     border : :class:`Border` (continuation), or None (``lam`` fixed).
 
-    With contact on and ``opts.contact_solve == "newton"`` (no ``border``,
-    no viscous term) the generalized Newton of :mod:`skfem_rod.nonsmooth`
-    solves for the normal multipliers too.
+    With contact on and ``opts.contact_solve == "newton"`` (no ``border``)
+    the generalized Newton of :mod:`skfem_rod.nonsmooth` solves for the
+    normal multipliers too, with the viscous term of a damped step
+    (``Problem.viscous``) as with any other.
 
     Returns
     -------
     ``(r, R, lam, report)`` with a :class:`Report`; ``report.converged``.
     """
-    if (problem.contact is not None and opts.contact_solve == "newton" and border is None
-            and problem.viscous is None):
+    if problem.contact is not None and opts.contact_solve == "newton" and border is None:
         from .nonsmooth import contact_newton
         return contact_newton(problem, r, R, lam, opts, prescribed)
     fixed = problem.fixed

@@ -111,9 +111,12 @@ class GradientFlow:
         problem, W = self.problem, self.W
         rod = problem.rod
         # the proximal steps need not be solved to round-off: only the last
-        # state counts, and it is polished by plain Newton
+        # state counts, and it is polished by Newton; they are plain Newton
+        # at the held multipliers (contact_solve "uzawa": a rejected step
+        # must leave the multipliers as they were)
         inner = replace(opts, max_iterations=min(opts.max_iterations, 8),
-                        rtol=max(opts.rtol, 1e-7), increment_tol=max(opts.increment_tol, 1e-8))
+                        rtol=max(opts.rtol, 1e-7), increment_tol=max(opts.increment_tol, 1e-8),
+                        contact_solve="uzawa")
         dt = opts.relax_dt if self.dt is None else self.dt
         presc = None if prescribed is None else prescribed.copy()
         steps = tries = iters = 0

@@ -138,17 +138,20 @@ def test_twisted_rod_records_stable_equilibria(twisted):
 
 
 @pytest.mark.slow
-def test_twisted_rod_snaps_into_a_loop_as_the_reference():
+@pytest.mark.parametrize("contact_solve", ["uzawa", "newton"])
+def test_twisted_rod_snaps_into_a_loop_as_the_reference(contact_solve):
     """The contact scene of tests/test_twisted_rod.py (L = 10 lambda, contact
     radius 0.1 lambda, 36 elements, 0.1 turn per step) to 1.9 turns with
     pseudo-dynamics instead of the gradient flow: the rod leaves the
     straight branch at 1.7 turns (torque 1.91 sqrt(BT), as the reference
     before its snap) and snaps into a loop closed by contact at 1.8 turns
     with the torque of the reference, 0.89 sqrt(BT) (gradient flow: 1.91 ->
-    0.89 at 1.8 turns), all by damped steps, no gradient-flow step."""
+    0.89 at 1.8 turns), all by damped steps, no gradient-flow step.  The
+    damped steps' contact solve is either the Uzawa loop or the generalized
+    Newton (the normal multipliers as unknowns inside every damped step)."""
     rod = demo.build(10.0, 36, 0.1, 1.9, 0.01, 0.01)
     recs = []
-    res = rod.solve(19, dynamics=True,
+    res = rod.solve(19, dynamics=True, contact_solve=contact_solve,
                     callback=lambda result, k: recs.append(demo.record(result, k, 1.9)))
     assert res.converged, res.message
     n = np.array([r["turns"] for r in recs])
