@@ -4,11 +4,13 @@ docs/friction.md F6, F7): a rigid step of 0.5 rad gives zero slip, the same
 stick/slip states and rotated forces; the tangent with pushed-forward
 multipliers and large step rotations matches finite differences; gamma_R
 gives no couple against relative bending, and twist is resisted by
-gamma_R f_N whether or not tangential friction is on."""
+gamma_R f_N whether or not tangential friction is on; and a whole load
+step that moves a pressed frictional contact rigidly by 0.5 rad converges
+to the rigidly moved state with zero slip and turned forces."""
 import numpy as np
 import pytest
 
-from skfem_rod import Rod
+from skfem_rod import Rod, Section
 from skfem_rod.contact import friction as law
 from skfem_rod.contact.friction_assembly import FrictionParams, friction_work
 from skfem_rod.contact.law import NormalLaw
@@ -16,7 +18,7 @@ from skfem_rod.contact.search import search, slave_points
 from skfem_rod.contact.slip import SlipState
 from skfem_rod.rotations import expm
 
-from test_contact import SEC, hairpin
+from test_contact import SEC, hairpin  # noqa: F401
 from test_friction_assembly import EPS, _setup
 
 
@@ -205,3 +207,87 @@ def test_twist_mode_pure_couple_and_pivot():
     assert full.sum() > 10
     np.testing.assert_allclose(np.abs(out.force_R[full, 1]), EPS * out.fN[full], rtol=1e-12)
     assert np.abs(out.slip_T[full]).max() < 1e-14
+
+
+def _pressed_hairpin(Q, c, theta, eps=0.02):
+    """A hairpin (legs 2.1 eps apart) whose two ends are held and, over
+    load step 1, moved rigidly by ``x -> Q x + c`` (``Q = exp(theta)``);
+    two constant follower forces press the free stretch of one leg onto the
+    other and drag it along, so that at step 0 the legs touch with
+    tangential and rotational friction at work."""
+    sec = Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0, GJ=0.8, radius=eps)
+    rod = Rod(hairpin(eps, 2.1 * eps, leg=0.5), sec, 16)
+    for e in ("start", "end"):
+        x0 = rod.r0[rod.node(e)]
+        rod.prescribe_displacement(e, Q @ x0 + c - x0)
+        rod.prescribe_rotation(e, theta)
+    L = rod.length
+    rod.add_force(L * 36 / 48, [1.5, -10.0, 0.0], follower=True, constant=True)
+    rod.add_force(L * 41 / 48, [2.5, -10.0, 0.5], follower=True, constant=True)
+    rod.enable_contact(radius=eps, gamma_T=0.3, gamma_R=0.2 * eps)
+    return rod
+
+
+def test_rigid_load_step_of_half_a_radian_in_a_solve():
+    """Issue 13's rigid step at the level of a solve: a pressed, frictional
+    contact state (step 0: every tangential point slipping, on its Coulomb
+    cone) moved rigidly by 0.5 rad and a translation in one load step.  The
+    step converges to the rigidly moved state; the slips of the step are
+    zero to round-off; normal forces are unchanged and friction forces and
+    couples turn with the motion; the points that slipped stay on their
+    cone (|f_T| = gamma_T f_N), the others keep their state.  Without the
+    push-forward of the carried multipliers the same step is read as slip
+    and the friction forces do not turn."""
+    rng = np.random.default_rng(7)
+    theta = 0.5 * _unit(rng.normal(size=3))
+    Q, c = expm(theta), 0.1 * rng.normal(size=3)
+    opts = dict(max_iterations=100, min_step=0.99)     # one step, never cut
+    res = _pressed_hairpin(Q, c, theta).solve(1, **opts)
+    assert res.converged and len(res.steps) == 2, res.message
+    s0, s1 = res.steps
+    c0, c1 = s0.contact, s1.contact
+    assert c0.s.size >= 3 and np.array_equal(c1.s, c0.s)
+    assert np.any(c0.state_T == law.SLIP) and np.any(c0.state_R == law.STICK)
+    # the rigidly moved state, to the Newton tolerance
+    assert np.abs(s1.r - (s0.r @ Q.T + c)).max() < 1e-9
+    assert np.abs(s1.R - Q @ s0.R).max() < 1e-9
+    # zero slip (step 0 slipped by 0.25 eps)
+    eps = 0.02
+    assert np.abs(c0.slip_T).max() > 0.1 * eps
+    assert np.abs(c1.slip_T).max() < 1e-9 * eps
+    assert np.abs(c1.slip_R).max() < 1e-9
+    # forces: normal unchanged, friction turned with Q
+    assert np.abs(c1.force - c0.force).max() < 1e-6 * c0.force.max()
+    fT, fR = np.abs(c0.force_T).max(), np.abs(c0.force_R).max()
+    assert np.abs(c1.force_T - c0.force_T @ Q.T).max() < 1e-6 * fT
+    assert np.abs(c1.force_R - c0.force_R @ Q.T).max() < 1e-6 * fR
+    # states: on the cone where they slipped (a zero slip leaves a force on
+    # the cone, read as stick or slip at the Newton tolerance), unchanged
+    # elsewhere
+    on_cone = c0.state_T == law.SLIP
+    ratio = np.linalg.norm(c1.force_T, axis=1) / (0.3 * c1.force)
+    assert np.abs(ratio[on_cone] - 1).max() < 1e-5
+    assert np.array_equal(c1.state_T[~on_cone], c0.state_T[~on_cone])
+    assert np.array_equal(c1.state_R[c0.state_R == law.STICK], c0.state_R[c0.state_R == law.STICK])
+
+
+def test_rigid_load_step_without_push_forward_reads_slip(monkeypatch):
+    """The check of the test above can fail: with the carried multipliers
+    not pushed forward (the friction forces of the last step kept in their
+    old directions) the same rigid step is not the rigidly moved state:
+    measured, Newton does not even converge (residual 0.1 after 100
+    iterations); if it did, the friction forces would not have turned."""
+    from skfem_rod.contact import ContactOptions
+    orig = ContactOptions.friction_params
+    monkeypatch.setattr(ContactOptions, "friction_params",
+                        lambda self, push_forward=True, **k: orig(self, False, **k))
+    rng = np.random.default_rng(7)
+    theta = 0.5 * _unit(rng.normal(size=3))
+    Q, c = expm(theta), 0.1 * rng.normal(size=3)
+    res = _pressed_hairpin(Q, c, theta).solve(1, max_iterations=100, min_step=0.99)
+    assert res.steps[0].contact.s.size >= 3
+    if res.converged:
+        c0, c1 = res.steps[0].contact, res.steps[1].contact
+        assert np.abs(c1.force_T - c0.force_T @ Q.T).max() > 0.1 * np.abs(c0.force_T).max()
+    else:
+        assert len(res.steps) == 1 and "no convergence" in res.message
