@@ -164,6 +164,10 @@ class Problem:
             self.slaves = slave_points(rod.mesh, self.contact.n_slave)
             #: the sparse patterns of the contact tangents, kept between evaluations
             self.contact_patterns = ContactPatterns()
+            #: the master element of each slave at the last evaluation (-1:
+            #: none), kept by the next search within KEEP_MASTER of the
+            #: contact tolerance (contact/search.py: kinks at nodes)
+            self.last_master = np.full(self.slaves.s.size, -1)
             self.multipliers = Multipliers.zeros(self.slaves.s.size, self.friction)
             if self.friction:
                 self.reference = (rod.r0.copy(), rod.R0.copy())
@@ -272,12 +276,15 @@ class Problem:
     def _contact(self, r, R, tangent):
         """Search, normal contact work and (friction on) friction work."""
         from .contact.assembly import contact_work
-        from .contact.search import search
+        from .contact.search import Preference, search
         c, m, tm = self.contact, self.multipliers, self.timers
         mu = c.penalty / m.penalty_scale                   # per slave
         reach = 2 * c.radius + (mu * m.normal).max(initial=0.0) + c.margin
         t0 = time.perf_counter()
-        pairs = search(self.mesh, r, self.slaves, reach, c.exclusion)
+        pairs = search(self.mesh, r, self.slaves, reach, c.exclusion,
+                       prefer=Preference(self.last_master, KEEP_MASTER * c.tolerance * c.radius))
+        self.last_master = np.full_like(self.last_master, -1)
+        self.last_master[pairs.slave] = pairs.m_elem
         t1 = time.perf_counter()
         mu = mu[pairs.slave]
         energy, force, K, fN = contact_work(self.mesh, r, pairs, m.normal, mu, c.radius,
@@ -380,6 +387,10 @@ class Problem:
         Kf = ev.tangent[idx][:, idx].tocsc()
         return Kf, self.residual_norm(ev) / self.force_scale(ev)
 
+
+#: a slave keeps its master element while the projection there is within
+#: this fraction of the contact tolerance of the closest one
+KEEP_MASTER = 0.1
 
 #: a position correction follows a Newton update that raised the residual
 #: norm by more than this factor (:func:`position_correction`)

@@ -144,3 +144,57 @@ def test_pinched_ring_pairs_do_not_depend_on_the_closure_point():
     for o in out[1:]:
         assert o.size == out[0].size
         np.testing.assert_allclose(o, out[0], rtol=0, atol=1e-12)
+
+
+def _kinked(alpha, h, dx):
+    """Two straight master elements meeting at the origin with a kink of
+    ``alpha`` (element 0 along -x, element 1 turned by ``alpha``); element 3
+    a straight slave segment at height ``h`` on the concave side, its middle
+    Gauss point at ``x = x0 + dx`` where ``x0 = -h tan(alpha / 2)`` is
+    equally far (``h``) from both elements."""
+    from skfem_rod.mesh import RodMesh
+    mesh = RodMesh(4.0, 4)
+    t = np.array([0.0, 1.0, 1 / 3, 2 / 3])[:, None]
+    a = np.array([np.cos(alpha), np.sin(alpha), 0.0])
+    x0 = -h * np.tan(alpha / 2)
+    r = np.zeros((mesh.n_nodes, 3))
+    r[mesh.nodes[0]] = (t - 1.0) * [1.0, 0.0, 0.0]
+    r[mesh.nodes[1]] = t * a
+    r[mesh.nodes[3]] = [x0 + dx - 0.5, h, 0.0] + t * [1.0, 0.0, 0.0]
+    r[mesh.nodes[2, 2:]] = [[a[0] + 0.5, 1.0, 1.0], [x0 + dx - 1.0, 1.0, 1.0]]
+    return mesh, r
+
+
+def test_a_slave_keeps_its_master_element_at_a_kink():
+    """At a node where the centreline kinks, a slave on the concave side has
+    a projection on both elements, equally far when it is on the bisector:
+    the closest one switches element as the slave crosses it (the normal
+    jumps by the kink angle; Newton 2-cycled on it in the plectoneme).  With
+    a Preference the last element is kept while its distance is within the
+    tolerance of the closest, and the distance it reports is its own (at
+    most the tolerance above the closest)."""
+    alpha, h, tol = 0.05, 0.2, 1e-4
+    slave = 3 * 3 + 1                              # middle Gauss point of element 3
+    sl = slave_points(_kinked(alpha, h, 0.0)[0])
+
+    def closest(dx, prefer=None):
+        mesh, r = _kinked(alpha, h, dx)
+        p = search(mesh, r, sl, reach=0.5, exclusion=0.3, prefer=prefer)
+        k = np.flatnonzero(p.slave == slave)
+        assert k.size == 1
+        return int(p.m_elem[k[0]]), float(p.distance[k[0]])
+
+    # without a preference: the closer element, switching at the bisector
+    assert closest(-1e-7)[0] == 0 and closest(1e-7)[0] == 1
+    assert abs(closest(-1e-7)[1] - h) < 1e-12
+    # kept while within the tolerance: element 0 is h, element 1 is
+    # h - dx sin(alpha) away
+    keep = search_mod.Preference(np.zeros(sl.s.size, int), tol)
+    dx = 0.5 * tol / np.sin(alpha)
+    e, d = closest(dx, keep)
+    assert e == 0 and abs(d - h) < 1e-12
+    assert 0 < d - closest(dx)[1] <= tol
+    assert closest(2.0 * tol / np.sin(alpha), keep)[0] == 1
+    # the other way round too
+    keep1 = search_mod.Preference(np.ones(sl.s.size, int), tol)
+    assert closest(-dx, keep1)[0] == 1 and closest(-2.0 * tol / np.sin(alpha), keep1)[0] == 0

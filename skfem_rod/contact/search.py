@@ -43,6 +43,22 @@ per slave that stays bounded under refinement (``Pairs.n_candidates``
 counts the projections).  Per slave the closest admissible projection is
 kept; a projection that lands on the exclusion boundary is not a contact
 and is dropped.
+
+*Kinks at nodes: the master element is kept.*  The interpolated centreline
+is C0 at the nodes: its tangent turns by a small angle there.  A slave on
+the concave side of a node has two orthogonal projections, one on each
+element, at distances that differ by a hair; the closest one switches
+element as the slave moves by a hair, and with it the contact normal (the
+two normals differ by the kink angle), so the residual jumps.  A Newton
+solve then 2-cycles between the two choices (measured in the plectoneme's
+damped steps: residual 0.396 <-> 0.429 for ever, one slave flipping
+between xi = 0.993 on one element and xi = 0.005 on the next, distances
+2.00028 eps both; in the knot of demos/knot.py the switches come with distance differences of 1e-3 eps and more, far from converged iterates, and this does not remove them).  With a :class:`Preference` (the master element each
+slave had at the last evaluation and a ``tolerance``) the search keeps a
+slave's master element as long as its projection there is within
+``tolerance`` of the closest one: the gap it reports is then at most
+``tolerance`` above the true one (``Problem`` passes 1 % of the contact
+tolerance), and Newton sees one smooth branch.
 """
 from dataclasses import dataclass
 
@@ -50,6 +66,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..element import shape_functions
+
+
+@dataclass(frozen=True)
+class Preference:
+    """The master element ``element[k]`` slave ``k`` had last (-1: none),
+    kept while its projection is within ``tolerance`` of the closest."""
+    element: np.ndarray
+    tolerance: float
 
 
 @dataclass
@@ -343,9 +367,10 @@ class _Query:
     period: object
     reach: float
     exclusion: float
+    prefer: Preference = None
 
 
-def search(mesh, r, slaves, reach, exclusion):
+def search(mesh, r, slaves, reach, exclusion, prefer=None):
     """All slave/master pairs with a centreline distance below ``reach``.
 
     Parameters
@@ -359,6 +384,8 @@ def search(mesh, r, slaves, reach, exclusion):
         Largest centreline distance of interest (``2 eps`` plus a margin).
     exclusion : float
         Excluded arclength around each slave (see module docstring).
+    prefer : :class:`Preference`, optional
+        The master elements to keep (module docstring: kinks at nodes).
 
     Notes
     -----
@@ -380,7 +407,7 @@ def search(mesh, r, slaves, reach, exclusion):
     q = _Query(x=x, xT=np.ascontiguousarray(x.T), s=slaves.s.ravel(),
                C=monomial_coefficients(r_el).transpose(1, 2, 0),      # (4, 3, ne)
                vertices=mesh.vertices, period=arclength_period(mesh), reach=reach,
-               exclusion=exclusion)
+               exclusion=exclusion, prefer=prefer)
     i, j, lb = _candidates(q, r_el)
     if i.size == 0:
         return _empty(0)
@@ -438,7 +465,8 @@ def _narrow_phase(q, i, j, lb):
     best[i[r1[0]]] = r1[5]
     rest = np.ones(i.size, bool)
     rest[first] = False
-    rest &= lb <= best[i] * (1.0 + 1e-10)
+    slack = 0.0 if q.prefer is None else q.prefer.tolerance
+    rest &= lb <= best[i] * (1.0 + 1e-10) + slack
     second = np.flatnonzero(rest)
     r2 = _project_candidates(q, i, j, second)
     found = tuple(np.concatenate([u, w]) for u, w in zip(r1, r2))
@@ -451,7 +479,10 @@ def _closest(q, slaves, i, j, found, n_cand):
     ns = slaves.s.shape[1]
     k, xi, interior, s_bar, dvec, dist = found
     ik = i[k]
-    order = np.lexsort((k, dist, ik))        # ties: first candidate, as a full pass would
+    key = dist
+    if q.prefer is not None:                 # the last master element, within tolerance
+        key = np.where(q.prefer.element[ik] == j[k], dist - q.prefer.tolerance, dist)
+    order = np.lexsort((k, key, ik))         # ties: first candidate, as a full pass would
     sel = order[np.r_[True, ik[order][1:] != ik[order][:-1]]]
     isel = ik[sel]
     return Pairs(slave=isel, s_elem=isel // ns, s_xi=slaves.xi[isel % ns], m_elem=j[k[sel]],
