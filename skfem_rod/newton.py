@@ -33,6 +33,11 @@ from .problem import Increment, State, update_size
 from .problem import failed as _fail
 
 
+#: the slope search shortens an update whose energy slope at the trial is
+#: above this fraction of the (negative) slope at the start, reversed
+SLOPE_BACK = 0.5
+
+
 @dataclass
 class Border:
     r"""The extra equation of pseudo-arclength continuation,
@@ -67,7 +72,7 @@ class Border:
         self.Dl = self.Dl + alpha * inc.dl
 
 
-def safeguarded_update(problem, at, inc, opts, bound, rn):
+def safeguarded_update(problem, at, inc, opts, bound, rn, slope=None):
     """The trial ``y (+) alpha dy``, ``lam + alpha dl`` from the
     :class:`~skfem_rod.problem.State` ``at`` along the
     :class:`~skfem_rod.problem.Increment` ``inc``: ``alpha`` starts where no
@@ -77,8 +82,12 @@ def safeguarded_update(problem, at, inc, opts, bound, rn):
     contact), or give a non-finite residual or one above ``bound``.  A
     trial that raised the residual norm ``rn`` more than
     :data:`CORRECT_ABOVE` times gets its position correction first
-    (``position_correction``).  Returns ``((r, R, evaluation) or None,
-    alpha, why)``."""
+    (``position_correction``).  With ``slope`` (option ``slope_search``:
+    frictionless contact, ``G . dy < 0`` at the start) a trial whose energy
+    slope ``G_t . dy`` is above :data:`SLOPE_BACK` times ``|slope|`` has
+    overshot the minimum of the energy along the update and is shortened to
+    the minimum of the quadratic with the two slopes (a tenth to a half).
+    Returns ``((r, R, evaluation) or None, alpha, why)``."""
     r, R, lam = at
     dy, dl = inc
     alpha, why = 1.0, "residual grew too much"
@@ -99,6 +108,14 @@ def safeguarded_update(problem, at, inc, opts, bound, rn):
             alpha *= 0.5
             continue
         rn_t = problem.residual_norm(ev_t)
+        if slope is not None and np.isfinite(rn_t):
+            s_t = float(np.dot(ev_t.residual[problem.free], dy[problem.free]))
+            if s_t > SLOPE_BACK * abs(slope):
+                problem.calls["slope_cuts"] += 1
+                why = "the energy rises along the update"
+                # the minimum of a quadratic with these slopes
+                alpha *= min(0.5, max(0.1, -slope / (s_t - slope)))
+                continue
         if np.isfinite(rn_t) and opts.position_correction and rn_t > CORRECT_ABOVE * rn:
             r_t, ev_t = position_correction(problem, r_t, R_t, lam + alpha * dl, ev_t)
             rn_t = problem.residual_norm(ev_t)
@@ -170,8 +187,13 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
             return _fail(r, R, lam, history, it, "non-finite Newton update", ev)
         bound = np.inf if (not opts.line_search or np.any(remaining)) \
             else opts.max_growth * max(rn, scale)
+        slope = None
+        if opts.slope_search and problem.contact is not None and not problem.friction \
+                and border is None and not np.any(remaining):
+            slope = float(np.dot(ev.residual[problem.free], inc.dy[problem.free]))
+            slope = slope if slope < 0 else None           # not a descent direction
         accepted, alpha, why = safeguarded_update(problem, State(r, R, lam), inc, opts,
-                                                  bound, rn)
+                                                  bound, rn, slope)
         if accepted is None:
             return _fail(r, R, lam, history, it + 1,
                          f"no admissible update after {opts.max_backtracks} halvings: {why}", ev)

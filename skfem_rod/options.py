@@ -151,6 +151,10 @@ class SolverOptions:
         (default true; :func:`skfem_rod.newton.position_correction`): the
         roll-up of a slender rod by pi/2 per step takes 3-4 iterations per
         step instead of 23.
+    slope_search : with frictionless contact (default false), shorten a
+        Newton update whose energy slope ``G . dy`` at the trial turned
+        positive beyond half the start slope: the update overshot the
+        minimum of the energy along it (docs/theory.md).
     contact_solve : with contact on, ``"uzawa"`` (the paper's iteration:
         multipliers updated after each converged Newton solve,
         :mod:`skfem_rod.augmented`) or ``"newton"`` (generalized Newton on
@@ -197,6 +201,10 @@ class SolverOptions:
     position_correction: bool = _opt(True, "boolean", "after a Newton update that raised the "
                                                       "residual 10x, one Newton step on the "
                                                       "positions with the rotations held")
+    slope_search: bool = _opt(False, "boolean", "with frictionless contact: shorten a Newton "
+                                                "update that overshoots the minimum of the "
+                                                "energy along it (the slope G . dy turned "
+                                                "positive)")
     contact_solve: str = _opt("uzawa", "choice", "contact solve: Uzawa updates of the "
                                                  "multipliers between Newton solves (the "
                                                  "paper), or a generalized Newton on the "

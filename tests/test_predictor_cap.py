@@ -44,7 +44,8 @@ def _pressed(F, **options):
     rod.clamp("start").add_force("end", [0.0, -F, 0.0])
     rod.enable_contact()
     res = rod.solve(n_steps=2, **options)
-    return res, res.steps[-1].r[rod.node("end")][1] / eps
+    return res, res.steps[-1].r[rod.node("end")][1] / eps, \
+        [st.r[rod.node("end")][1] / eps for st in res.steps]
 
 
 @pytest.mark.slow
@@ -56,15 +57,19 @@ def test_clearance_cap_keeps_a_pressed_leg_on_the_other_side():
     with the clearance cap (the default) every iterate moves the legs
     toward each other by at most half their clearance and the leg comes to
     rest on the other one (tip at y = 2 eps to the Uzawa tolerance).
-    Uncapped, the passage is still never reported: the step whose converged
-    state has the leg through the other is refused by the true-distance
-    check (an overlap of 2 eps between slave points), cut, and the solve
-    ends with the leg on the right side too (it ended at y < 0 before that
-    check existed)."""
-    res, y = _pressed(3.0, clearance_cap=False)
-    assert any("the strands overlap by 2 eps" in line for line in res.log)
+    Uncapped, the passage is still never reported: the full first step is
+    not accepted (its Newton solve either converges with the leg through
+    the other and is refused by the true-distance check, an overlap of
+    2 eps between slave points, or does not converge: measured since the
+    search keeps master elements at kinks), it is cut, and every recorded
+    step has the leg on the right side (it ended at y < 0 before the
+    true-distance check existed)."""
+    res, y, ys = _pressed(3.0, clearance_cap=False)
+    assert any("step to lam=0.5 (t=0.5) failed" in line
+               or "the strands overlap by 2 eps" in line for line in res.log)
+    assert min(ys) > 1.9                      # the tip rests on the other leg
     assert res.converged and y == pytest.approx(2.0, abs=0.03)
-    res, y = _pressed(3.0)
+    res, y, _ = _pressed(3.0)
     assert not any("failed" in line or "between slave points" in line for line in res.log)
     assert res.converged, res.message
     assert y == pytest.approx(2.0, abs=0.03)
@@ -158,3 +163,32 @@ def test_clearance_check_sees_every_pair_that_can_close_too_far():
         r1[:, 1] += step * eps * side * bump
         assert clearance_ok(rod, r0, r1) is ok
     assert clearance_ok(rod, r0, r0 + [10 * eps, 0.0, 0.0])
+
+
+def test_slope_search_shortens_overshooting_updates_not_the_answer(monkeypatch):
+    """Option ``slope_search`` (frictionless contact): a Newton update whose
+    energy slope ``G . dy`` at the trial has turned positive beyond half the
+    slope at the start overshot the minimum of the energy along it, and is
+    shortened.  On the pressed hairpin the contact iterations overshoot (a
+    leg lands deep in the other and the penalty throws it back): the search
+    cuts them, and the solve reaches the same equilibrium as without (1e-8
+    of the radius)."""
+    from skfem_rod import problem as problem_mod
+    cuts = []
+    orig = problem_mod.Problem.__init__
+
+    def init(self, rod):
+        orig(self, rod)
+        cuts.append(self.calls)
+    monkeypatch.setattr(problem_mod.Problem, "__init__", init)
+    plain, y0, _ = _pressed(3.0)
+    assert cuts[-1]["slope_cuts"] == 0
+    res, y1, _ = _pressed(3.0, slope_search=True)
+    assert cuts[-1]["slope_cuts"] > 0
+    assert plain.converged and res.converged, res.message
+    for a, b in zip(plain.steps, res.steps):
+        assert a.load_factor == b.load_factor
+        assert np.abs(a.r - b.r).max() <= 1e-8 * SEC.radius
+    # validated as every option
+    with pytest.raises(ValueError, match="slope_search must be true or false"):
+        SolverOptions(slope_search="yes")
