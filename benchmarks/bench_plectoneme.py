@@ -37,6 +37,7 @@ angle ``t``, then ``M_p = 2 B sin^3 t cos t / (R cos 2t)`` and
 """
 import argparse
 import datetime
+import json
 import os
 import sys
 import time
@@ -91,8 +92,10 @@ def theory():
                 shortening_per_turn=th["shortening_per_turn"] * lam)
 
 
-def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped=400):
-    """Solve one case; returns a dict of figures (and the result)."""
+def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped=400,
+        **options):
+    """Solve one case (``options``: more solver options); returns a dict of
+    figures (and the result)."""
     rod = build(n_elements, gamma_T, turns)
     n_steps = int(np.ceil(turns * 4))
     recs = []
@@ -124,7 +127,7 @@ def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped
     stopped = ""
     try:
         result = rod.solve(n_steps, dynamics=True, callback=callback,
-                           max_damped_steps=max_damped)
+                           max_damped_steps=max_damped, **options)
         message = result.message
     except Budget:
         result = out["result"]
@@ -226,13 +229,19 @@ def main(argv=None):
     p.add_argument("--budget", type=float, default=300.0, help="wall-time budget per run (s)")
     p.add_argument("--max-damped", type=int, default=400,
                    help="damped steps per damped phase before a run gives up")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="another solver option (value as JSON), e.g. contact_solve=\"newton\"")
     p.add_argument("--out", default=str(HERE))
     a = p.parse_args(argv)
+    options = {}
+    for kv in a.option:
+        k, _, v = kv.partition("=")
+        options[k] = json.loads(v)
     runs = []
     for n in a.elements:
         for g in a.gammas:
             print(f"{n} elements, gamma_T = {g:g}", flush=True)
-            r = run(n, g, a.turns, a.budget, max_damped=a.max_damped)
+            r = run(n, g, a.turns, a.budget, max_damped=a.max_damped, **options)
             print(f"  -> {r['turns']:.3f} turns in {r['wall']:.1f} s: {r['message']}", flush=True)
             runs.append(r)
             # written after every run: a long run does not lose the others
