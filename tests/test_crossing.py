@@ -421,3 +421,51 @@ def test_sampled_angle_bad_input(kwargs, name):
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         sampled_angle(**args)
+
+
+def _over_a_kink(alpha=0.05, d=0.19, dx=0.0):
+    """Strand A: two straight elements meeting at the origin with a kink of
+    ``alpha`` (element 0 along -x, element 1 turned by ``alpha``); strand B
+    (element 3) a straight element along z through ``(x0 + dx, d, 0)`` on the
+    concave side, ``x0 = -d tan(alpha / 2)`` on the bisector: B crosses A
+    at a right angle with one closest point on each of A's elements, a hair
+    apart and (``dx = 0``) equally far."""
+    from skfem_rod.mesh import RodMesh
+    mesh = RodMesh(4.0, 4)
+    t = np.array([0.0, 1.0, 1 / 3, 2 / 3])[:, None]
+    a = np.array([np.cos(alpha), np.sin(alpha), 0.0])
+    x0 = -d * np.tan(alpha / 2) + dx
+    r = np.zeros((mesh.n_nodes, 3))
+    r[mesh.nodes[0]] = (t - 1.0) * [1.0, 0.0, 0.0]
+    r[mesh.nodes[1]] = t * a
+    r[mesh.nodes[3]] = [x0, d, -0.5] + t * [0.0, 0.0, 1.0]
+    r[mesh.nodes[2, 2:]] = [[3.0, 3.0, 3.0], [3.0, 3.0, -3.0]]
+    return mesh, r
+
+
+def test_twin_minima_at_a_kink_are_one_crossing():
+    """A strand crossing another over a kink of its C0 centreline has a
+    closest point on each of the two elements at the node, a hair apart:
+    two strict local minima of the strand distance, one crossing.  They are
+    one pair (two pairs put the contact force in twice, and a held pair
+    following one twin or the other from one Newton iterate to the next
+    made the plectoneme's damped steps 2-cycle): the closer one, or, with a
+    held pair there, the one nearest its place."""
+    from skfem_rod.contact import crossing as cx
+    mesh, r = _over_a_kink()
+    mn = cx._minima(mesh, r, 0.1, 0.3, 0.3)
+    assert mn["s"].size == 1
+    # both twins are there before the merge: raw closest points of (0, 3), (1, 3)
+    C = cx.monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
+    u, v, dist = cx.closest_points(C[:, :, [0, 1]], C[:, :, [3, 3]])
+    assert 0 < u[0] < 1 and 0 < u[1] < 1 and abs(dist[0] - dist[1]) < 1e-12
+    for dx, closer in ((1e-6, 1), (-1e-6, 0)):         # the closer twin
+        mesh, r = _over_a_kink(dx=dx)
+        cp = cx.crossing_pairs(mesh, r, 0.1, 0.3)
+        assert cp.size == 1 and cp.e[0] == closer, (dx, cp.e)
+    # a held pair at one twin keeps that twin, even when the other is closer
+    mesh, r = _over_a_kink(dx=1e-6)
+    s0 = cx.crossing_pairs(mesh, r, 0.1, 0.3)
+    key0 = np.array([[0.9953, 3.5, 1.0, 1.5, -1.0]])       # at the twin on element 0
+    cp = cx.crossing_pairs(mesh, r, 0.1, 0.3, held=(key0, np.array([1.0])))
+    assert s0.e[0] == 1 and cp.size == 1 and cp.e[0] == 0

@@ -52,12 +52,18 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..element import shape_functions
 from .law import gap, normal_force, potential
 from .search import (monomial_coefficients, curve_point, arclength_period, arc_distance,
                      project)
+
+
+#: minima closer than this fraction of an element in both arclengths are
+#: one crossing (:func:`_one_per_crossing`)
+TWIN = 0.05
 
 
 def _dot(a, b):
@@ -339,7 +345,7 @@ def _node_minimum(C, e, u, G, ne, closed):
     return ok
 
 
-def _minima(mesh, r, radius, exclusion, reach):
+def _minima(mesh, r, radius, exclusion, reach, held=None):
     """Strict local minima of the distance between strands: per minimum
     the elements, parameters, arclengths, distance, ``D = X - Y``, the
     free flags, ``sin^2 beta``, tangents' ``|cos|`` (one per minimum: a
@@ -364,17 +370,40 @@ def _minima(mesh, r, radius, exclusion, reach):
     sin2 = np.where(both, (huu * hvv - huv * huv) / np.maximum(huu * hvv, 1e-300),
                     np.where(fu, huu / n1, np.where(fv, hvv / n2, 1.0)))
     ok &= ~((fu & (huu <= 0)) | (fv & (hvv <= 0))) & (sin2 > 0)
-    vt = mesh.vertices
-    q = 1e-8 * float(np.mean(np.diff(vt)))
     k = np.flatnonzero(ok)
-    if k.size:
-        order = np.lexsort((np.rint(s_bar[k] / q), np.rint(s[k] / q)))
-        k = k[order]
-        same = (np.abs(np.diff(s[k])) <= q) & (np.abs(np.diff(s_bar[k])) <= q)
-        k = np.sort(k[np.r_[True, ~same]])
+    k = k[_one_per_crossing(s[k], s_bar[k], dist[k],
+                            TWIN * float(np.mean(np.diff(mesh.vertices))), held)]
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(n1 * n2)
     return dict(e=e[k], f=f[k], u=u[k], v=v[k], s=s[k], s_bar=s_bar[k], distance=dist[k],
                 D=D[:, k].T, u_free=fu[k], v_free=fv[k], sin2=sin2[k], cos=cos[k])
+
+
+def _one_per_crossing(s, s_bar, dist, within, held=None):
+    """Indices (sorted) of the minima to keep: of the minima closer than
+    ``within`` in both arclengths (a cluster, transitively), the one nearest
+    to a held pair's place (``held``: ``(s, s_bar)`` rows, the keys of the
+    last multiplier update, fixed during a solve), else the closest.
+    A node minimum is found from every element pair sharing the node; and
+    at a kink of the C0 centreline one crossing can have twin minima, one
+    on each side of the node, a hair apart and equally far (measured in the
+    plectoneme: 1e-4 apart, distances equal to 1e-8; a held pair then
+    followed one twin or the other from one Newton iterate to the next and
+    the residual 2-cycled; keeping the closest twin, the choice flipped with
+    distances 4e-6 eps apart, so the twin nearest the held place is kept)."""
+    n = s.size
+    if n < 2:
+        return np.arange(n)
+    P = cKDTree(np.c_[s, s_bar]).query_pairs(within, p=np.inf, output_type="ndarray")
+    if P.size == 0:
+        return np.arange(n)
+    g = sp.coo_matrix((np.ones(len(P)), (P[:, 0], P[:, 1])), shape=(n, n))
+    lab = connected_components(g, directed=False)[1]
+    near = np.full(n, np.inf)
+    if held is not None and len(held):
+        near = cKDTree(np.asarray(held)[:, :2]).query(np.c_[s, s_bar], p=np.inf)[0]
+        near[near > within] = np.inf          # only a twin of the held place itself
+    order = np.lexsort((np.arange(n), dist, near, lab))
+    return np.sort(order[np.r_[True, lab[order][1:] != lab[order][:-1]]])
 
 
 def _held_pairs(mesh, r, key, exclusion):
@@ -473,10 +502,11 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThresho
     (1, 0.15, 0.5)
     """
     reach = 3.0 * radius if reach is None else reach
-    mn = _minima(mesh, r, radius, exclusion, reach)
+    old = np.zeros((0, 4)) if held is None else np.asarray(held[0], float)
+    mn = _minima(mesh, r, radius, exclusion, reach,
+                 old if old.ndim == 2 and old.shape[1] >= 4 else None)
     fresh = _classify(mesh, mn, radius, threshold)
     parts = []
-    old = np.zeros((0, 4)) if held is None else np.asarray(held[0], float)
     if old.size and old.ndim == 2 and old.shape[1] >= 4:
         parts += _held_parts(mesh, r, mn, fresh, (old, np.asarray(held[1], float)), reach,
                              exclusion)
