@@ -51,7 +51,7 @@ from .augmented import augmented_lagrangian
 from .kinematics import ElementRotationError
 from .newton import Border, Report, newton
 from .options import make_options
-from .problem import Increment, Problem, State
+from .problem import Increment, Problem, State, spin_cap
 from .results import Result
 from .stability import modes
 from .validation import count, positive
@@ -221,9 +221,7 @@ class Follower:
         (spins bounded by ``max_rotation_step``), corrector, and, when the
         step crosses ``lam_stop``, a corrector placed on it (``Dlam``
         fixed).  Returns ``(h, new point or None, report, landed)``."""
-        spin = np.abs((ds * p.ty).reshape(-1, 6)[:, 3:]).max()
-        max_spin = self.opts.max_rotation_step
-        h = min(ds, ds * max_spin / spin) if spin > 0 else ds
+        h = ds * spin_cap(ds * p.ty, self.opts.max_rotation_step)
         r1, R1, lam1, info = self.corrector(p, h)
         land = False
         if info.converged and lam_stop is not None and \

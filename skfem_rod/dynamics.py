@@ -265,15 +265,12 @@ class PseudoDynamics:
         v = mode.ravel() / max(np.linalg.norm(mode), 1e-300)
         q = float(np.dot(self.W * v, v))
         self.dt_saddle = 0.5 * q / abs(low) if low < 0 else np.inf
-        size = 0.5 * p.contact.radius if p.contact is not None else 1e-3 * p.rod.length
-        size *= 2.0 ** min(self.pushes, 10)          # a push that did not get away
+        size = p.push_size * 2.0 ** min(self.pushes, 10)   # a push that did not get away
         self.pushes += 1
-        a = min(size / max(np.abs(mode[:, :3]).max(), 1e-300),
-                0.1 / max(np.abs(mode[:, 3:]).max(), 1e-300))
         # no polish until the flow is well away from the saddle (Newton would
         # converge back onto it)
         self.away_from = (r, SADDLE_DISTANCE * size)
-        return p.update(r, R, p.to_basis(mode.ravel()), a)
+        return p.push(r, R, mode_b, size)
 
     def near_saddle(self, r):
         """True while ``r`` is within the distance of the last saddle that

@@ -29,7 +29,7 @@ from .kinematics import ElementRotationError
 # Report, the position correction and its threshold live in problem.py
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
-from .problem import Increment, State, update_size
+from .problem import Increment, State, spin_cap, start, update_size
 from .problem import failed as _fail
 
 
@@ -92,8 +92,7 @@ def safeguarded_update(problem, at, inc, opts, bound, rn, slope=None):
     dy, dl = inc
     alpha, why = 1.0, "residual grew too much"
     if opts.line_search:
-        spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
-        alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+        alpha = spin_cap(dy, opts.max_spin_update)
     cap = opts.clearance_cap and problem.contact is not None
     for _ in range(opts.max_backtracks + 1):
         try:
@@ -153,13 +152,10 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         from .nonsmooth import contact_newton
         return contact_newton(problem, r, R, lam, opts, prescribed)
     fixed = problem.fixed
-    remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
-    history = []
-    last_update = np.inf
-    try:
-        ev = problem.evaluate(r, R, lam)
-    except ElementRotationError as err:
-        return _fail(r, R, lam, history, 0, str(err))
+    history, last_update = [], np.inf
+    remaining, ev, why = start(problem, r, R, lam, prescribed)
+    if ev is None:
+        return _fail(r, R, lam, history, 0, why)
     for it in range(opts.max_iterations + 1):
         rn = problem.residual_norm(ev)
         scale = problem.force_scale(ev)

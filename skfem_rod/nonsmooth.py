@@ -59,7 +59,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from .contact.law import gap
 from .kinematics import ElementRotationError
 from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
-from .problem import position_correction, update_size
+from .problem import position_correction, spin_cap, start, update_size
 from .problem import failed as _fail
 
 #: Armijo's sufficient decrease of the merit |(G, C)| per unit step
@@ -221,14 +221,12 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
     held (the contact tolerances met; None if never), ``report.step_lengths``
     the line search's ``alpha`` per iteration."""
     c, m = problem.contact, problem.multipliers
-    remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
     history, complementarity, alphas, merits = [], [], [], []
     tol = c.tolerance * c.radius
     last_update, polish, polished_from, escapes = np.inf, False, None, 0
-    try:
-        ev = problem.evaluate(r, R, lam)
-    except ElementRotationError as err:
-        return _fail(r, R, lam, history, 0, str(err))
+    remaining, ev, why = start(problem, r, R, lam, prescribed)
+    if ev is None:
+        return _fail(r, R, lam, history, 0, why)
     for it in range(opts.max_iterations + 1):
         scale = problem.force_scale(ev)
         if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
@@ -318,9 +316,8 @@ def line_search(problem, at, inc, merit, opts):
     dy, dl = inc
     reference, weight = merit.reference, merit.weight
     alpha, why = 1.0, "the merit did not fall"
-    spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max()
     if opts.line_search:
-        alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+        alpha = spin_cap(dy, opts.max_spin_update)
     alpha0 = alpha
     bound = opts.max_growth * max(reference, merit.scale)
     best = None

@@ -195,6 +195,21 @@ class Problem:
         check_no_wrap(self.mesh, R, d[:, 3:])
         return r + d[:, :3], rotate(R, d[:, 3:])
 
+    def push(self, r, R, mode, size):
+        """``(r, R)`` moved along ``mode`` (dof basis; e.g. an unstable mode)
+        so that the largest nodal move is ``size`` and the largest nodal
+        rotation 0.1 rad."""
+        m = self.to_spatial(mode).reshape(-1, 6)
+        a = min(size / max(np.abs(m[:, :3]).max(), 1e-300),
+                0.1 / max(np.abs(m[:, 3:]).max(), 1e-300))
+        return self.update(r, R, mode, a)
+
+    @property
+    def push_size(self):
+        """The largest nodal move of a push off a saddle: half the contact
+        radius, or 1e-3 of the rod length without contact."""
+        return 0.5 * self.contact.radius if self.contact is not None else 1e-3 * self.rod.length
+
     def increment(self, r, R, r_ref, R_ref):
         """``y (-) y_ref`` in the dof basis: the ``dy`` with ``y = y_ref (+) dy``."""
         d = np.concatenate([r - r_ref, spin_between(R, R_ref)], axis=1).ravel()
@@ -410,6 +425,25 @@ class Increment(NamedTuple):
     (bordered continuation) or the normal multipliers' (generalized Newton)."""
     dy: np.ndarray
     dl: object = 0.0
+
+
+def spin_cap(dy, largest):
+    """The fraction of the update ``dy`` (dof basis) whose largest nodal spin
+    is ``largest`` (rad), at most 1: where a Newton update, a line search or
+    a predictor starts."""
+    spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max(initial=0.0)
+    return min(1.0, largest / max(spin, 1e-300))
+
+
+def start(problem, r, R, lam, prescribed):
+    """What a Newton solve starts from: the prescribed increment still to
+    apply (a copy; zeros for None) and the evaluation at ``(r, R, lam)``,
+    or None and the reason when ``(r, R)`` leaves an element chart."""
+    remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
+    try:
+        return remaining, problem.evaluate(r, R, lam), ""
+    except ElementRotationError as err:
+        return remaining, None, str(err)
 
 
 def update_size(problem, dy):

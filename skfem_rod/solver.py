@@ -27,7 +27,7 @@ import numpy as np
 
 from .augmented import step
 from .options import SolverOptions, make_options
-from .problem import Problem, clearance_ok
+from .problem import Problem, clearance_ok, spin_cap
 from .relax import GradientFlow
 from .results import Result
 from .rotations import is_rotation
@@ -136,8 +136,7 @@ class LoadStepper:
         p, opts = self.problem, self.opts
         dy = ratio * p.increment(r, R, prev[1], prev[2])
         dy[p.fixed] = 0.0
-        spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max(initial=0.0)
-        alpha = min(1.0, opts.max_spin_update / max(spin, 1e-300))
+        alpha = spin_cap(dy, opts.max_spin_update)
         for _ in range(opts.max_backtracks + 1):
             try:
                 r_p, R_p = p.update(r, R, dy, alpha)
@@ -192,12 +191,7 @@ class LoadStepper:
         if negative and relax:
             log.append(f"step to lam={lam_new:.6g}: unstable equilibrium (lowest eigenvalue "
                        f"{low:.3e}); relaxing along the unstable mode")
-            m = p.to_spatial(mode).reshape(-1, 6)
-            size = 0.5 * p.contact.radius if p.contact is not None else 1e-3 * self.rod.length
-            # largest nodal move ``size``, largest nodal rotation 0.1 rad
-            a = min(size / max(np.abs(m[:, :3]).max(), 1e-300),
-                    0.1 / max(np.abs(m[:, 3:]).max(), 1e-300))
-            r_p, R_p = p.update(r1, R1, mode, a)
+            r_p, R_p = p.push(r1, R1, mode, p.push_size)
             r1, R1, rep = step(p, r_p, R_p, lam_new, None, opts,
                                inner=lambda *a, **k: self.flow(*a, descent=True, **k))
             rep.relaxed = rep.converged

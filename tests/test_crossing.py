@@ -453,9 +453,9 @@ def test_twin_minima_at_a_kink_are_one_crossing():
     held pair there, the one nearest its place."""
     from skfem_rod.contact import crossing as cx
     mesh, r = _over_a_kink()
-    mn = cx._minima(mesh, r, 0.1, 0.3, 0.3)
-    assert mn["s"].size == 1
-    # both twins are there before the merge: raw closest points of (0, 3), (1, 3)
+    assert cx.crossing_pairs(mesh, r, 0.1, 0.3).size == 1
+    # both twins are there: closest points of (0, 3) and (1, 3), interior,
+    # equally far
     C = cx.monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
     u, v, dist = cx.closest_points(C[:, :, [0, 1]], C[:, :, [3, 3]])
     assert 0 < u[0] < 1 and 0 < u[1] < 1 and abs(dist[0] - dist[1]) < 1e-12

@@ -465,8 +465,10 @@ def _narrow_phase(q, i, j, lb):
     best[i[r1[0]]] = r1[5]
     rest = np.ones(i.size, bool)
     rest[first] = False
-    slack = 0.0 if q.prefer is None else q.prefer.tolerance
-    rest &= lb <= best[i] * (1.0 + 1e-10) + slack
+    keep = lb <= best[i] * (1.0 + 1e-10)
+    if q.prefer is not None:                 # the preferred element, if it can be kept
+        keep |= (q.prefer.element[i] == j) & (lb <= best[i] + q.prefer.tolerance)
+    rest &= keep
     second = np.flatnonzero(rest)
     r2 = _project_candidates(q, i, j, second)
     found = tuple(np.concatenate([u, w]) for u, w in zip(r1, r2))
