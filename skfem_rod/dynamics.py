@@ -55,7 +55,7 @@ import numpy as np
 
 from .augmented import step as al_step
 from .newton import newton
-from .problem import Viscous, clearance_ok
+from .problem import clearance_ok
 from .relax import metric
 
 __all__ = ["DynamicsLog", "PseudoDynamics", "follow"]
@@ -153,11 +153,8 @@ def viscous_inner(problem, W, c, r_ref, R_ref):
     with the viscous term ``c W (y (-) y_ref)`` switched on (same signature)."""
 
     def inner(r, R, lam, opts, prescribed=None):
-        problem.viscous = Viscous(c, W, r_ref, R_ref)
-        try:
+        with problem.damped(c, W, r_ref, R_ref):
             return newton(problem, r, R, lam, opts, prescribed=prescribed)
-        finally:
-            problem.viscous = None
     return inner
 
 

@@ -25,6 +25,7 @@ the inverse, the increment between two states, is
 """
 import time
 from collections import defaultdict
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
@@ -105,8 +106,9 @@ class Multipliers:
 
 @dataclass
 class Viscous:
-    """Viscous term ``c W (y (-) y_ref)`` of a proximal (gradient-flow) step,
-    :mod:`skfem_rod.relax`; ``W`` a diagonal metric per dof."""
+    """Viscous term ``c W (y (-) y_ref)`` of a proximal (gradient-flow) step
+    or a damped step (:meth:`Problem.damped`); ``W`` a diagonal metric per
+    dof."""
     c: float
     W: np.ndarray
     r_ref: np.ndarray
@@ -194,6 +196,17 @@ class Problem:
         d = alpha * self.to_spatial(dy).reshape(-1, 6)
         check_no_wrap(self.mesh, R, d[:, 3:])
         return r + d[:, :3], rotate(R, d[:, 3:])
+
+    @contextmanager
+    def damped(self, c, W, r_ref, R_ref):
+        """The viscous term ``c W (y (-) y_ref)`` (:class:`Viscous`) on in
+        the evaluations inside the ``with`` block (a proximal step of the
+        gradient flow, a damped step of the pseudo-dynamics), off after."""
+        self.viscous = Viscous(c, W, r_ref, R_ref)
+        try:
+            yield self
+        finally:
+            self.viscous = None
 
     def push(self, r, R, mode, size):
         """``(r, R)`` moved along ``mode`` (dof basis; e.g. an unstable mode)

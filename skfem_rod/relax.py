@@ -59,7 +59,7 @@ from dataclasses import replace
 import numpy as np
 
 from .newton import Report, newton
-from .problem import Viscous, clearance_ok
+from .problem import clearance_ok
 
 __all__ = ["GradientFlow", "metric", "clearance_ok"]
 
@@ -128,11 +128,8 @@ class GradientFlow:
             g0 = problem.evaluate(r, R, lam, tangent=False).residual
         while steps < opts.max_flow_steps:
             tries += 1
-            problem.viscous = Viscous(1.0 / dt, W, r, R)
-            try:
+            with problem.damped(1.0 / dt, W, r, R):
                 r1, R1, _, rep = newton(problem, r, R, lam, inner, prescribed=presc)
-            finally:
-                problem.viscous = None
             iters += rep.iterations
             ok = rep.converged
             if ok and not clearance_ok(rod, r, r1):
