@@ -160,9 +160,15 @@ class Problem:
         self.friction = self.contact is not None and self.contact.friction
         self.multipliers = None
         self.reference = None
+        self.contact_curve = None
         if self.contact is not None:
             from .contact.assembly import ContactPatterns
+            from .contact.curve import ContactCurve
             from .contact.search import slave_points
+            #: the curve the contact acts on (contact/curve.py): None, the
+            #: rod's centreline; else a ContactCurve (option curve="smooth")
+            self.contact_curve = ContactCurve(rod.mesh) if self.contact.curve == "smooth" \
+                else None
             self.slaves = slave_points(rod.mesh, self.contact.n_slave)
             #: the sparse patterns of the contact tangents, kept between evaluations
             self.contact_patterns = ContactPatterns()
@@ -302,20 +308,34 @@ class Problem:
         return Evaluation(residual=res, tangent=K, external=f_ext, internal=iw, contact=ce)
 
     def _contact(self, r, R, tangent):
-        """Search, normal contact work and (friction on) friction work."""
+        """Search, normal contact work and (friction on) friction work, on
+        the contact curve (the rod's centreline, or the smooth curve of
+        :attr:`contact_curve`, pulled back to the rod's dofs)."""
+        cc = self.contact_curve
+        if cc is None:
+            return self._contact_on(self.mesh, r, R, self.reference, tangent)
+        ref = None if self.reference is None else (cc.positions(self.reference[0]),
+                                                   cc.rotations(self.reference[1]))
+        ce, force, K = self._contact_on(cc.mesh, cc.positions(r), cc.rotations(R), ref,
+                                        tangent)
+        return ce, cc.force(force), (cc.tangent(K) if tangent else None)
+
+    def _contact_on(self, mesh, r, R, reference, tangent):
+        """Contact work on the curve of ``mesh`` at nodal ``(r, R)``, slips
+        measured from ``reference`` (friction on)."""
         from .contact.assembly import contact_work
         from .contact.search import Preference, search
         c, m, tm = self.contact, self.multipliers, self.timers
         mu = c.penalty / m.penalty_scale                   # per slave
         reach = 2 * c.radius + (mu * m.normal).max(initial=0.0) + c.margin
         t0 = time.perf_counter()
-        pairs = search(self.mesh, r, self.slaves, reach, c.exclusion,
+        pairs = search(mesh, r, self.slaves, reach, c.exclusion,
                        prefer=Preference(self.last_master, KEEP_MASTER * c.tolerance * c.radius))
         self.last_master = np.full_like(self.last_master, -1)
         self.last_master[pairs.slave] = pairs.m_elem
         t1 = time.perf_counter()
         mu = mu[pairs.slave]
-        energy, force, K, fN = contact_work(self.mesh, r, pairs, m.normal, mu, c.radius,
+        energy, force, K, fN = contact_work(mesh, r, pairs, m.normal, mu, c.radius,
                                             tangent, cache=self.contact_patterns.normal)
         t2 = time.perf_counter()
         tm["contact_search"] += t1 - t0
@@ -325,11 +345,11 @@ class Problem:
             from .contact.friction_assembly import friction_work
             from .contact.law import NormalLaw
             from .contact.slip import SlipState
-            r_n, R_n = self.reference
+            r_n, R_n = reference
             params = c.friction_params(push_forward=True, scale_T=m.friction_scale,
                                        scale_R=m.friction_scale)
             state = SlipState(r, R, r_n, R_n, m.tangential, m.rotational)
-            ff, Kf, fr = friction_work(self.mesh, state, pairs, NormalLaw(m.normal, mu, c.radius),
+            ff, Kf, fr = friction_work(mesh, state, pairs, NormalLaw(m.normal, mu, c.radius),
                                        params, tangent=tangent, K_normal=K,
                                        cache=self.contact_patterns.friction)
             force = force + ff
@@ -340,11 +360,11 @@ class Problem:
         if c.crossing:
             from .contact.crossing import carry, crossing_pairs, crossing_work
             t3 = time.perf_counter()
-            cp = crossing_pairs(self.mesh, r, c.radius, c.exclusion,
+            cp = crossing_pairs(mesh, r, c.radius, c.exclusion,
                                 threshold=c.crossing_threshold(),
                                 held=(m.crossing_key, m.crossing))
             lam = carry(m.crossing_key, m.crossing, cp.key)
-            ec, fc, Kc, fNc = crossing_work(self.mesh, r, cp, lam, c.crossing_penalty,
+            ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
                                             c.radius, tangent)
             force = force + fc
             if tangent:

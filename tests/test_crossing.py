@@ -350,14 +350,14 @@ def _fd_check(mesh, r, held, seed=0, mu=0.1):
 def test_held_flat_minimum_energy_force_tangent():
     """Near-parallel strands (0.5 degrees: below the threshold angle, no new
     pair) whose minimum carries a multiplier: a point-to-curve pair from the
-    grid point nearest the minimum (u held, projection free)."""
+    key's material point (u held, projection free)."""
     mesh, r = two_strands(np.radians(0.5), 1.5 * EPS)
     assert crossing_pairs(mesh, r, EPS, np.pi * EPS).size == 0
     md = min_distance(mesh, r, EPS, np.pi * EPS)
     held = (np.array([[md.s, md.s_bar, H, 0.0, -1.0]]), np.array([0.4]))
     cp, fN = _fd_check(mesh, r, held)
     assert cp.size == 1 and not cp.u_free[0] and cp.v_free[0] and fN[0] > 0
-    assert (cp.u[0] * 16) == pytest.approx(round(cp.u[0] * 16), abs=1e-12)   # a grid point
+    assert cp.s[0] == pytest.approx(md.s, abs=1e-12)          # the key's material point
     assert carry(held[0], held[1], cp.key)[0] == 0.4          # its own multiplier
 
 
@@ -469,3 +469,28 @@ def test_twin_minima_at_a_kink_are_one_crossing():
     key0 = np.array([[0.9953, 3.5, 1.0, 1.5, -1.0]])       # at the twin on element 0
     cp = cx.crossing_pairs(mesh, r, 0.1, 0.3, held=(key0, np.array([1.0])))
     assert s0.e[0] == 1 and cp.size == 1 and cp.e[0] == 0
+
+
+@pytest.mark.parametrize("key_sharp, beta_ratio, lam, expect_free", [
+    (True, 0.98, 0.4, True),     # sharp at the update, just below now: stays sharp
+    (False, 1.02, 0.4, False),   # flat at the update, just above now: stays flat
+    (True, 0.4, 0.4, False),     # far below (under KEEP_SHARP): flat
+    (False, 1.02, 0.0, True),    # unloaded: as a new pair would be
+])
+def test_held_pair_keeps_its_form_during_a_solve(key_sharp, beta_ratio, lam, expect_free):
+    """A held pair acts sharp (both parameters free) or flat (held at a grid
+    point) as decided at the multiplier update (the key's angle against the
+    threshold), not as the minimum's angle moves about the threshold from
+    one Newton iterate to the next; a minimum far flatter than the
+    threshold is held flat whatever the key says."""
+    from skfem_rod.contact.crossing import PairThreshold
+    mesh, r = two_strands(np.radians(10.0), 1.5 * EPS)
+    beta = crossing_pairs(mesh, r, EPS, np.pi * EPS).beta[0]
+    threshold = PairThreshold(min_angle=beta / beta_ratio, n_slave=3, tolerance=1.0)
+    assert threshold.angle(H, EPS) == pytest.approx(beta / beta_ratio)   # min_angle rules
+    md = min_distance(mesh, r, EPS, np.pi * EPS)
+    key_beta = 1.5 * beta / beta_ratio if key_sharp else 0.5 * beta / beta_ratio
+    held = (np.array([[md.s, md.s_bar, H, key_beta, -1.0]]), np.array([lam]))
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=threshold, held=held)
+    assert cp.size == 1
+    assert bool(cp.u_free[0] and cp.v_free[0]) == expect_free

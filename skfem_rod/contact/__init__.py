@@ -67,6 +67,12 @@ class ContactOptions:
     rotational_slip : what the rotational law acts on
         (:class:`.friction_assembly.FrictionParams`, docs/friction.md F7):
         ``"twist"`` (default), ``"circumferential"`` or ``"pivot"``.
+    curve : the curve the contact acts on (:mod:`.curve`): ``"elements"``
+        (default), the rod's P3 centreline, C0 at the nodes; ``"smooth"``, a
+        C1 cubic through the nodes (tangents at the vertices from the two
+        elements beside them), O(h^4) from the centreline: the contact
+        normal and distance have no kinks where a closest point passes a
+        node.
     crossing : add point-to-point contact pairs at the closest points of
         crossing strands (:mod:`.crossing`); default False.
     crossing_penalty : compliance of the crossing pairs' point law (length
@@ -104,6 +110,9 @@ class ContactOptions:
                                                      "nominal one)", lo=1.0, lo_open=False)
     rotational_slip: str = _field("twist", "choice", "what the rotational friction law acts on",
                                   choices=("twist", "circumferential", "pivot"))
+    curve: str = _field("elements", "choice", "the curve the contact acts on: the P3 "
+                                             "centreline (C0 at nodes) or a C1 cubic through "
+                                             "its nodes", choices=("elements", "smooth"))
     crossing: bool = _field(False, "boolean", "point-to-point pairs at the closest points of "
                                               "crossing strands")
     crossing_penalty: float = _field(None, "number", "compliance of the crossing pairs "

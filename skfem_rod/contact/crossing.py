@@ -439,8 +439,10 @@ def _held_pairs(mesh, r, key, exclusion):
                 u_free=np.zeros(e.size, bool), v_free=interior)
 
 
-#: grid points per element where a loaded flat minimum is held
-GRID = 16
+#: a held pair sharp at the multiplier update stays sharp (both parameters
+#: free) during the solve while its minimum's effective angle is above this
+#: fraction of the threshold (:func:`_held_parts`)
+KEEP_SHARP = 0.5
 
 
 @dataclass(frozen=True)
@@ -529,7 +531,7 @@ def _classify(mesh, mn, radius, threshold):
     beta = np.arcsin(np.sqrt(np.clip(mn["sin2"], 0.0, 1.0)))
     mn["mkey"] = np.c_[mn["s"], mn["s_bar"], np.maximum(vt[e + 1] - vt[e], vt[f + 1] - vt[f]),
                        beta]
-    mn["length"], mn["beta"] = mn["distance"], beta
+    mn["length"], mn["beta"], mn["beta_min"] = mn["distance"], beta, beta_min
     return beta >= beta_min
 
 
@@ -551,12 +553,23 @@ def _held_parts(mesh, r, mn, fresh, held, reach, exclusion):
     """The pairs of the held minima ``held = (key, multipliers)``: those
     following a sharp minimum act at it (both parameters free), loaded
     ones on a flat minimum or none at a held material point
-    (:func:`_flat_held`).  A followed minimum is no longer ``fresh``."""
+    (:func:`_flat_held`).  A followed minimum is no longer ``fresh``.
+
+    Sharp or flat is decided at the multiplier update, by the minimum's
+    angle then (the key's ``beta``), and kept during the solve while the
+    minimum stays above :data:`KEEP_SHARP` of the threshold: a minimum
+    whose angle hovers at the threshold switched the pair between the two
+    forms from one Newton iterate to the next (measured in the
+    plectoneme's damped steps: beta 0.2603 <-> 0.2696 around 0.2618, the
+    residual 0.15 <-> 0.73 for ever).  An unloaded held pair is sharp
+    where a new pair would be."""
     old, lam = held
     follow = _follow(mn["mkey"], old)
     has = follow >= 0
     sharp = np.zeros(old.shape[0], bool)
-    sharp[has] = fresh[follow[has]]
+    fh = follow[has]
+    kept = (old[has, 3] >= mn["beta_min"][fh]) & (mn["beta"][fh] >= KEEP_SHARP * mn["beta_min"][fh])
+    sharp[has] = np.where(lam[has] > 0, kept, fresh[fh])       # unloaded: as a new pair
     act = (lam > 0) | sharp
     # sharp minima act at the minimum (both parameters free)
     i = np.flatnonzero(sharp)
@@ -568,19 +581,17 @@ def _held_parts(mesh, r, mn, fresh, held, reach, exclusion):
 
 
 def _flat_held(mesh, r, mn, old, i, follow, reach, exclusion):
-    """The held pairs ``i`` of keys ``old`` that act held: on a flat
-    minimum followed by a loaded pair at the grid point nearest the minimum
-    (GRID per element); a loaded pair whose minimum is gone at its own
-    material point until its multiplier is 0 (:func:`_held_pairs`)."""
-    vt = mesh.vertices
+    """The held pairs ``i`` of keys ``old`` that act held, at the
+    material point of their key (the place of the minimum at the last
+    multiplier update, fixed during the solve; :func:`_held_pairs`): on a
+    flat minimum, which they follow (their key moves to it), or, loaded,
+    where the minimum is gone, until the multiplier is 0.  (They acted at
+    the grid point nearest the current minimum before: a flat minimum
+    moves by ``delta / sin^2 beta``, and the grid point jumped between
+    Newton iterates: measured 1.3e-3 of the rod's length, two grid points,
+    in the plectoneme's damped steps, which then 2-cycled.)"""
     fl = follow[i]
-    at = old[i, :2].copy()
-    g = fl >= 0
-    eg = mn["e"][fl[g]]
-    ug = np.rint(mn["u"][fl[g]] * GRID) / GRID
-    at[g, 0] = vt[eg] + ug * (vt[eg + 1] - vt[eg])
-    at[g, 1] = mn["s_bar"][fl[g]]
-    hp = _held_pairs(mesh, r, at, exclusion)
+    hp = _held_pairs(mesh, r, old[i, :2], exclusion)
     ok = np.isfinite(hp["distance"]) & (hp["distance"] < reach) & (hp["distance"] > 0)
     i, fl, hp = i[ok], fl[ok], {n: a[ok] for n, a in hp.items()}
     hp["length"] = hp["distance"]
