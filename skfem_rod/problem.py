@@ -177,6 +177,11 @@ class Problem:
             #: contact tolerance (contact/search.py: kinks at nodes)
             self.last_master = np.full(self.slaves.s.size, -1)
             self.multipliers = Multipliers.zeros(self.slaves.s.size, self.friction)
+            if self.contact.crossing:
+                from .contact.crossing import CrossingTrack
+                #: where the held crossing pairs followed their minima at the
+                #: last evaluation (contact/crossing.py, CrossingTrack)
+                self.crossing_track = CrossingTrack()
             if self.friction:
                 self.reference = (rod.r0.copy(), rod.R0.copy())
 
@@ -362,7 +367,8 @@ class Problem:
             t3 = time.perf_counter()
             cp = crossing_pairs(mesh, r, c.radius, c.exclusion,
                                 threshold=c.crossing_threshold(),
-                                held=(m.crossing_key, m.crossing))
+                                held=self.crossing_track.held(m.crossing_key, m.crossing))
+            self.crossing_track.record(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
                                             c.radius, tangent)

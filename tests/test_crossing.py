@@ -494,3 +494,28 @@ def test_held_pair_keeps_its_form_during_a_solve(key_sharp, beta_ratio, lam, exp
     cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=threshold, held=held)
     assert cp.size == 1
     assert bool(cp.u_free[0] and cp.v_free[0]) == expect_free
+
+
+def test_a_held_pair_follows_its_minimum_from_the_tracked_place():
+    """A minimum that moved beyond its key's carry radius within a solve
+    is still followed from the place tracked at the last evaluation
+    (:class:`CrossingTrack`): one pair, both parameters free; from the key
+    alone the held pair acts at its own material point beside a new pair
+    at the minimum."""
+    from skfem_rod.contact.crossing import CrossingTrack
+    mesh, r = two_strands(np.pi / 3, 1.5 * EPS)
+    md = min_distance(mesh, r, EPS, np.pi * EPS)
+    beta = crossing_pairs(mesh, r, EPS, np.pi * EPS).beta[0]
+    key = np.array([[md.s - 0.15 * H, md.s_bar + 0.15 * H, 0.1 * H, beta, -1.0]])
+    lam = np.array([0.4])
+    apart = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=(key, lam))
+    assert apart.size == 2 and not apart.u_free[0]
+    track = CrossingTrack()
+    held = track.held(key, lam)
+    track.places[:] = [md.s - 0.05 * H, md.s_bar + 0.05 * H]     # the last evaluation's place
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held)
+    assert cp.size == 1 and cp.u_free[0] and cp.v_free[0] and cp.key[0, 4] == 0
+    track.record(cp)
+    assert track.places[0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
+    assert track.held(key, lam)[2] is track.places                # same keys: kept
+    assert track.held(key.copy(), lam)[2][0, 0] == key[0, 0]     # new keys: reset
