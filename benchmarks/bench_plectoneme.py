@@ -66,8 +66,9 @@ def section():
                    radius=RADIUS)
 
 
-def build(n_elements, gamma_T=0.0, turns=TURNS, imperfection=1e-2):
-    """The rod of the module doc."""
+def build(n_elements, gamma_T=0.0, turns=TURNS, imperfection=1e-2, contact=None):
+    """The rod of the module doc (``contact``: more contact options, e.g.
+    ``{"curve": "smooth"}``)."""
     rod = Rod(geometry.straight(L), section(), n_elements)
     rod.clamp("start")
     rod.pin("end", components=(1, 2))
@@ -76,7 +77,7 @@ def build(n_elements, gamma_T=0.0, turns=TURNS, imperfection=1e-2):
     s = rod.mesh.s_nodes
     rod.add_force(float(s[np.argmin(np.abs(s - L / 2))]), [0.0, imperfection * TENSION, 0.0],
                   constant=True)
-    rod.enable_contact(radius=RADIUS, gamma_T=float(gamma_T), crossing=True)
+    rod.enable_contact(radius=RADIUS, gamma_T=float(gamma_T), crossing=True, **(contact or {}))
     return rod
 
 
@@ -93,10 +94,10 @@ def theory():
 
 
 def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped=400,
-        **options):
-    """Solve one case (``options``: more solver options); returns a dict of
-    figures (and the result)."""
-    rod = build(n_elements, gamma_T, turns)
+        contact=None, **options):
+    """Solve one case (``contact``: more contact options, ``options``: more
+    solver options); returns a dict of figures (and the result)."""
+    rod = build(n_elements, gamma_T, turns, contact=contact)
     n_steps = int(np.ceil(turns * 4))
     recs = []
     t0 = time.perf_counter()
@@ -231,17 +232,21 @@ def main(argv=None):
                    help="damped steps per damped phase before a run gives up")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="another solver option (value as JSON), e.g. contact_solve=\"newton\"")
+    p.add_argument("--contact", action="append", default=[], metavar="KEY=VALUE",
+                   help="another contact option (value as JSON), e.g. curve=\"smooth\"")
     p.add_argument("--out", default=str(HERE))
     a = p.parse_args(argv)
-    options = {}
-    for kv in a.option:
-        k, _, v = kv.partition("=")
-        options[k] = json.loads(v)
+    options, contact = {}, {}
+    for target, given in ((options, a.option), (contact, a.contact)):
+        for kv in given:
+            k, _, v = kv.partition("=")
+            target[k] = json.loads(v)
     runs = []
     for n in a.elements:
         for g in a.gammas:
             print(f"{n} elements, gamma_T = {g:g}", flush=True)
-            r = run(n, g, a.turns, a.budget, max_damped=a.max_damped, **options)
+            r = run(n, g, a.turns, a.budget, max_damped=a.max_damped, contact=contact,
+                    **options)
             print(f"  -> {r['turns']:.3f} turns in {r['wall']:.1f} s: {r['message']}", flush=True)
             runs.append(r)
             # written after every run: a long run does not lose the others

@@ -519,3 +519,23 @@ def test_a_held_pair_follows_its_minimum_from_the_tracked_place():
     assert track.places[0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
     assert track.held(key, lam)[2] is track.places                # same keys: kept
     assert track.held(key.copy(), lam)[2][0, 0] == key[0, 0]     # new keys: reset
+
+
+def test_a_held_pair_whose_minimum_is_gone_acts_where_it_was_last_seen():
+    """A loaded held pair whose minimum has gone acts at the place tracked
+    at the last evaluation (where the minimum vanished), not at its key:
+    the force does not jump where a minimum disappears within a solve."""
+    from skfem_rod.contact.crossing import CrossingTrack
+    mesh, r = two_strands(np.pi / 3, 1.5 * EPS, bend=0.05)
+    md = min_distance(mesh, r, EPS, np.pi * EPS)
+    key = np.array([[md.s - 0.15 * H, md.s_bar + 1.5 * H, 0.1 * H, 0.0, -1.0]])
+    track = CrossingTrack()
+    held = track.held(key, np.array([0.4]))
+    seen = [md.s - 0.25 * H, md.s_bar + 1.4 * H]
+    track.places[:] = seen
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held)
+    i = np.flatnonzero(cp.key[:, 4] == 0)
+    assert i.size == 1 and not cp.u_free[i[0]]
+    assert cp.s[i[0]] == pytest.approx(seen[0], abs=1e-12)
+    track.record(cp)
+    assert track.places[0, 0] == pytest.approx(seen[0], abs=1e-12)   # stays there

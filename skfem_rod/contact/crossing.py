@@ -616,17 +616,22 @@ def _held_parts(mesh, r, mn, fresh, held, reach, exclusion):
     i = np.flatnonzero(sharp)
     fp = {n: a[follow[i]] for n, a in mn.items()}
     fp["key"] = np.c_[mn["mkey"][follow[i]], i]
-    hp = _flat_held(mesh, r, mn, old, np.flatnonzero(act & ~sharp), follow, reach, exclusion)
+    # a pair whose minimum is gone acts at the place it was last seen (the
+    # tracked place): where it vanished, so the force does not jump there
+    at = old.copy()
+    at[~has, :2] = near[~has, :2]
+    hp = _flat_held(mesh, r, mn, at, np.flatnonzero(act & ~sharp), follow, reach, exclusion)
     fresh[follow[has]] = False
     return [fp, hp]
 
 
 def _flat_held(mesh, r, mn, old, i, follow, reach, exclusion):
     """The held pairs ``i`` of keys ``old`` that act held, at the
-    material point of their key (the place of the minimum at the last
-    multiplier update, fixed during the solve; :func:`_held_pairs`): on a
-    flat minimum, which they follow (their key moves to it), or, loaded,
-    where the minimum is gone, until the multiplier is 0.  (They acted at
+    material point of their key (fixed during the solve;
+    :func:`_held_pairs`): on a flat minimum, which they follow (their key
+    moves to it; the key's place is the minimum's at the last multiplier
+    update), or, loaded, where the minimum is gone (the key's place is
+    where it was last seen), until the multiplier is 0.  (They acted at
     the grid point nearest the current minimum before: a flat minimum
     moves by ``delta / sin^2 beta``, and the grid point jumped between
     Newton iterates: measured 1.3e-3 of the rod's length, two grid points,
