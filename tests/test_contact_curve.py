@@ -183,3 +183,25 @@ def test_no_ridge_where_a_closest_point_passes_a_kinked_node(curve):
         assert second[1] > 2 * second[0] and second[2] > 2 * second[1]   # grows as 1/h
     else:
         assert max(second) <= 1.1 * min(second), second   # smooth: converges
+
+
+def test_pressed_hairpin_on_the_smooth_curve_matches_the_centreline():
+    """A hairpin's free leg pressed onto the clamped one (the scene of
+    test_contact): on the smooth contact curve it converges at every step
+    with the contact law kept, to the centreline's answer (total contact
+    force and tip within the O(h^4) difference of the two curves)."""
+    eps = SEC.radius
+    out = {}
+    for curve in ("elements", "smooth"):
+        rod = Rod(hairpin(eps, 4 * eps), SEC, 40)
+        rod.clamp("start").add_force("end", [0, -0.6, 0])
+        rod.enable_contact(penalty=10 * eps**4 / SEC.EI1, curve=curve)
+        res = rod.solve(n_steps=6)
+        assert res.converged, res.message
+        for st in res.steps:
+            assert st.contact.penetration <= rod.contact.tolerance * eps
+            assert np.all(st.contact.force > 0)
+        out[curve] = (res.steps[-1].contact.total_force, res.steps[-1].r[rod.node("end")])
+    (F0, x0), (F1, x1) = out["elements"], out["smooth"]
+    assert F0 > 0 and abs(F1 - F0) <= 1e-6 * F0, (F0, F1)
+    assert np.linalg.norm(x1 - x0) <= 1e-5 * eps, np.linalg.norm(x1 - x0) / eps
