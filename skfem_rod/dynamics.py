@@ -35,7 +35,8 @@ The loop, in plain sight::
                 enforced and true distance checked at every step)
             failed or strand passage: dt /= 2 (stop below DT_FLOOR dt_0)
             accepted: commit (friction slips start there); dt *= 2 after two
-                steps in a row with <= EASY Newton iterations per AL pass
+                steps in a row with <= EASY Newton iterations per AL pass, or
+                after STALL accepted steps in a row at one dt
             at lam_new, viscous force |W dy| / dt <= dynamics_tol * force
                 scale, and away from the last saddle:
                 polish: Newton + AL with the viscous term off; converged,
@@ -65,6 +66,11 @@ __all__ = ["DynamicsLog", "PseudoDynamics", "follow"]
 LOAD_RAMP = 64.0
 #: grow dt after an implicit step that took at most this many Newton iterations
 EASY = 4
+#: grow dt also after this many accepted steps in a row at one dt: steps that
+#: converge every time but never within EASY iterations (each starting from a
+#: large static out-of-balance, 17.7 -> 13.2 -> 2.5 -> 1.8e-2 -> 2e-6 -> 0)
+#: held the plectoneme's dt at 7.6e-6 for 300 steps, the load frozen
+STALL = 8
 #: the damped phase gives up when dt falls below this fraction of its first value
 DT_FLOOR = 1e-8
 #: after a push off a saddle, no polish until the flow is this many push
@@ -288,7 +294,7 @@ class PseudoDynamics:
         why)`` when it gives up."""
         opts, p = self.opts, self.problem
         dt = self.dt0 if self.dt is None else self.dt
-        steps = tries = easy = 0
+        steps = tries = easy = held = 0
         first = True
         why = "no damped step"
         next_polish = np.inf                 # viscous force that allows a polish
@@ -299,7 +305,7 @@ class PseudoDynamics:
             r1, R1, rep, ok = self.damped(r, R, t, t_new, dt)
             if not ok:
                 why = rep.reason
-                easy = 0
+                easy = held = 0
                 dt *= 0.5
                 if dt < DT_FLOOR * self.dt0:
                     return None, (f"the damped steps stopped at pseudo-time {t:.6g} "
@@ -320,8 +326,10 @@ class PseudoDynamics:
             # contact's work, not a sign that the step is too long
             its = (rep.newton_total or rep.iterations) / (rep.uzawa + 1)
             easy = easy + 1 if its <= EASY else 0
-            if easy >= 2:                        # two easy steps in a row
+            held += 1
+            if easy >= 2 or held >= STALL:       # two easy steps, or a stalled dt
                 dt = min(2.0 * dt, DT_CEIL * self.dt0)
+                held = 0
             near = self.near_saddle(r)
             dt = min(dt, self.dt_saddle)
             if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:
