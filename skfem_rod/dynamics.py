@@ -294,7 +294,7 @@ class PseudoDynamics:
         why)`` when it gives up."""
         opts, p = self.opts, self.problem
         dt = self.dt0 if self.dt is None else self.dt
-        steps = tries = easy = held = 0
+        steps = tries = easy = at_dt = 0
         first = True
         why = "no damped step"
         next_polish = np.inf                 # viscous force that allows a polish
@@ -305,7 +305,7 @@ class PseudoDynamics:
             r1, R1, rep, ok = self.damped(r, R, t, t_new, dt)
             if not ok:
                 why = rep.reason
-                easy = held = 0
+                easy = at_dt = 0
                 dt *= 0.5
                 if dt < DT_FLOOR * self.dt0:
                     return None, (f"the damped steps stopped at pseudo-time {t:.6g} "
@@ -326,10 +326,10 @@ class PseudoDynamics:
             # contact's work, not a sign that the step is too long
             its = (rep.newton_total or rep.iterations) / (rep.uzawa + 1)
             easy = easy + 1 if its <= EASY else 0
-            held += 1
-            if easy >= 2 or held >= STALL:       # two easy steps, or a stalled dt
+            at_dt += 1
+            if easy >= 2 or at_dt >= STALL:      # two easy steps, or a stalled dt
                 dt = min(2.0 * dt, DT_CEIL * self.dt0)
-                held = 0
+                at_dt = 0
             near = self.near_saddle(r)
             dt = min(dt, self.dt_saddle)
             if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:

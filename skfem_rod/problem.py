@@ -161,6 +161,7 @@ class Problem:
         self.multipliers = None
         self.reference = None
         self.contact_curve = None
+        self.crossing_track = None
         if self.contact is not None:
             from .contact.assembly import ContactPatterns
             from .contact.curve import ContactCurve

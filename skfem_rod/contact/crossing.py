@@ -513,7 +513,7 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThresho
     """
     reach = 3.0 * radius if reach is None else reach
     old = np.zeros((0, 4)) if held is None else np.asarray(held[0], float)
-    valid = old.size and old.ndim == 2 and old.shape[1] >= 4
+    valid = bool(old.size) and old.ndim == 2 and old.shape[1] >= 4
     near = old
     if valid and len(held) > 2 and held[2] is not None:       # follow from the tracked places
         near = old.copy()
@@ -550,7 +550,8 @@ def _classify(mesh, mn, radius, threshold):
 class CrossingTrack:
     """The places the held crossing pairs followed at the last evaluation,
     for the keys of one multiplier update (:func:`crossing_pairs`'s
-    ``track``); reset when the keys change."""
+    ``track``); reset when the keys change (another key array: a multiplier
+    update, or multipliers restored from a copy)."""
 
     def __init__(self):
         self.key, self.places = None, None

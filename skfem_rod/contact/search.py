@@ -53,12 +53,15 @@ two normals differ by the kink angle), so the residual jumps.  A Newton
 solve then 2-cycles between the two choices (measured in the plectoneme's
 damped steps: residual 0.396 <-> 0.429 for ever, one slave flipping
 between xi = 0.993 on one element and xi = 0.005 on the next, distances
-2.00028 eps both; in the knot of demos/knot.py the switches come with distance differences of 1e-3 eps and more, far from converged iterates, and this does not remove them).  With a :class:`Preference` (the master element each
+2.00028 eps both).  With a :class:`Preference` (the master element each
 slave had at the last evaluation and a ``tolerance``) the search keeps a
 slave's master element as long as its projection there is within
 ``tolerance`` of the closest one: the gap it reports is then at most
-``tolerance`` above the true one (``Problem`` passes 1 % of the contact
-tolerance), and Newton sees one smooth branch.
+``tolerance`` above the true one (``Problem`` passes ``KEEP_MASTER`` = 10 %
+of the contact tolerance), and Newton sees one smooth branch.  In the knot
+of demos/knot.py the switches come with distance differences of 1e-3 eps
+and more on iterates far from converged, and this does not remove them.
+The smooth contact curve (:mod:`.curve`) has no kinks to switch at.
 """
 from dataclasses import dataclass
 
