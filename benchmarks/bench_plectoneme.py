@@ -77,7 +77,8 @@ def build(n_elements, gamma_T=0.0, turns=TURNS, imperfection=1e-2, contact=None)
     s = rod.mesh.s_nodes
     rod.add_force(float(s[np.argmin(np.abs(s - L / 2))]), [0.0, imperfection * TENSION, 0.0],
                   constant=True)
-    rod.enable_contact(radius=RADIUS, gamma_T=float(gamma_T), crossing=True, **(contact or {}))
+    rod.enable_contact(**{"radius": RADIUS, "gamma_T": float(gamma_T), "crossing": True,
+                          **(contact or {})})
     return rod
 
 

@@ -10,6 +10,25 @@ stays on the (unstable) straight branch, so a small transverse dead force
 at mid-length (``--imperfection`` times ``B / L^2``, constant) picks the
 buckled branch.
 
+Two load paths to the same end conditions (``--path``):
+
+* ``proportional`` (PyElastica's): slack and turns together.  The straight
+  rod is compressed 5e5 times past Euler's load long before the twist
+  matters, and the path wanders through compressed, contorted states.
+* ``rigid`` (default; the protocol of the experiments on localized
+  writhing, Thompson & Champneys 1996): first twist the rod by the 27
+  turns while its end is held a little beyond the rest length (end
+  tension ``T0 = 0.5``, above the Greenhill tension ``M^2 / 4B = 0.333`` of
+  the 27 turns, so the straight twisted rod is stable: plain load steps),
+  then bring the end in by the slack plus that stretch with the end
+  rotation held (a second rod started from the first's state,
+  ``Rod.solve(start=...)``).  Under this rigid loading the localizing
+  branch grows out of the Greenhill point stably (tension rising from
+  0.333 to 0.390 as the end comes in); only its first step leaves the
+  unstable straight state (pushed off along its unstable mode by
+  ``stability=True``).  The equilibrium at the end is that of the same
+  boundary conditions.
+
 At load factor 1 the solution is compared with the relations of the
 localizing helix: the end tension ``T = tau B / L^2``, the end twisting
 moment ``M = m B / L``, the largest tangent angle ``theta_max`` and the
@@ -18,8 +37,9 @@ writhe (``2 arccos(c) / pi``).  The analytic solution is that of the
 inextensible, unshearable infinite rod; for this case it is straight at
 the ends to 2e-5, and ``EA = 1e5`` stretches the rod by 4e-6 under ``T``.
 
-    python benchmarks/bench_writhing.py [--elements 128] [--steps 54]
-        [--imperfection 1e-3] [--option dynamics=true ...] [--out DIR]
+    python benchmarks/bench_writhing.py [--elements 128] [--steps 30]
+        [--path rigid|proportional] [--imperfection 1e-3]
+        [--option snap='"relax"' ...] [--results]
 
 prints the figures and the solver's counts (steps, Newton iterations, cut
 steps, damped or flow steps, wall time); with ``--results`` appends them to
@@ -59,6 +79,32 @@ def build(n_elements=128, imperfection=1e-3, slack=SLACK, turns=TURNS):
     return rod
 
 
+#: end tension of the twisting stage of the rigid path (above the Greenhill
+#: tension M^2 / 4B = 0.333 of 27 straight turns)
+T_TWIST = 0.5
+
+
+def build_rigid(n_elements=128, imperfection=1e-3, slack=SLACK, turns=TURNS):
+    """The two rods of the rigid path: ``twist`` (the end held at the stretch
+    ``T_TWIST L / EA`` and turned by ``turns``) and ``shorten`` (the end
+    rotation held, the end moved in by ``slack`` plus that stretch)."""
+    stretch = T_TWIST * L / EA
+
+    return (build(n_elements, imperfection, slack=-stretch, turns=turns),
+            build(n_elements, imperfection, slack=slack + stretch, turns=0.0))
+
+
+def solve_rigid(n_elements, n_steps, imperfection, options, slack=SLACK, turns=TURNS):
+    """The rigid path: twist in ``max_rotation_step`` steps (plain Newton),
+    then shorten in ``n_steps`` steps with ``options``.  Returns the two
+    results."""
+    twist, shorten = build_rigid(n_elements, imperfection, slack, turns)
+    first = twist.solve(1)
+    if not first.converged:
+        return first, None
+    return first, shorten.solve(n_steps, start=first, **options)
+
+
 def measure(result, step=-1, per_element=16):
     """End tension and twisting moment, largest tangent angle to the axis,
     twist and writhe (turns) of ``result.steps[step]``."""
@@ -80,18 +126,27 @@ def reference(slack=SLACK, turns=TURNS):
                 link=turns)
 
 
-def run(n_elements, n_steps, imperfection, options):
-    rod = build(n_elements, imperfection)
+def run(n_elements, n_steps, imperfection, options, path="rigid"):
     t0 = time.perf_counter()
-    res = rod.solve(n_steps, **options)
+    if path == "rigid":
+        first, res = solve_rigid(n_elements, n_steps, imperfection, options)
+        stages = [first] + ([res] if res is not None else [])
+        res = stages[-1] if res is None else res
+        converged = len(stages) == 2 and res.converged
+    else:
+        res = build(n_elements, imperfection).solve(n_steps, **options)
+        stages, converged = [res], res.converged
     wall = time.perf_counter() - t0
-    out = dict(elements=n_elements, steps=n_steps, options=options,
-               imperfection=imperfection, converged=bool(res.converged),
-               message=res.message, wall_s=wall,
-               load_factor=float(res.steps[-1].load_factor),
-               recorded_steps=len(res.steps),
-               newton=int(sum(st.iterations for st in res.steps)))
-    if res.converged:
+    out = dict(elements=n_elements, steps=n_steps, path=path, options=options,
+               imperfection=imperfection, converged=bool(converged),
+               message=" / ".join(r.message for r in stages), wall_s=wall,
+               load_factor=float(res.steps[-1].load_factor) if res.steps else 0.0,
+               recorded_steps=sum(len(r.steps) for r in stages),
+               newton=int(sum(st.iterations for r in stages for st in r.steps)),
+               flow_steps=int(sum(st.flow_steps for r in stages for st in r.steps)))
+    if path == "rigid" and not converged:
+        out["load_factor"] = 0.0 if len(stages) == 1 else out["load_factor"]
+    if converged:
         out["fe"] = measure(res)
         out["ref"] = reference()
         out["rel_error"] = {k: abs(out["fe"][k] - out["ref"][k]) / abs(out["ref"][k])
@@ -102,8 +157,11 @@ def run(n_elements, n_steps, imperfection, options):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--elements", type=int, default=128)
-    ap.add_argument("--steps", type=int, default=108,
-                    help="load steps (27 turns: at least 108 with max_rotation_step pi/2)")
+    ap.add_argument("--steps", type=int, default=30,
+                    help="load steps (of the shortening stage on the rigid path; the "
+                         "proportional path needs at least 108 for 27 turns with "
+                         "max_rotation_step pi/2)")
+    ap.add_argument("--path", choices=("rigid", "proportional"), default="rigid")
     ap.add_argument("--imperfection", type=float, default=1e-3)
     ap.add_argument("--option", action="append", default=[],
                     help="solver option name=value (JSON value), repeatable")
@@ -114,7 +172,7 @@ def main(argv=None):
     for kv in a.option:
         k, _, v = kv.partition("=")
         options[k] = json.loads(v)
-    res, out = run(a.elements, a.steps, a.imperfection, options)
+    res, out = run(a.elements, a.steps, a.imperfection, options, a.path)
     print(json.dumps({k: v for k, v in out.items()}, indent=1, default=str))
     if a.results:
         lines = [f"\n## {datetime.date.today()} `python benchmarks/bench_writhing.py "
@@ -122,8 +180,9 @@ def main(argv=None):
                  f"{machine_info()}\n",
                  f"converged: {out['converged']} ({out['message']}); load factor "
                  f"{out['load_factor']:.4g}; {out['recorded_steps']} steps, "
-                 f"{out['newton']} Newton iterations, {out['wall_s']:.1f} s\n"]
-        if res.converged:
+                 f"{out['newton']} Newton iterations, {out['flow_steps']} gradient-flow "
+                 f"steps, {out['wall_s']:.1f} s\n"]
+        if out["converged"]:
             lines.append("\n| quantity | FE | localizing helix | rel. error |\n|---|---|---|---|\n")
             for k in out["ref"]:
                 lines.append(f"| {k} | {out['fe'][k]:.6g} | {out['ref'][k]:.6g} | "
