@@ -143,7 +143,11 @@ def run(n_elements, n_steps, imperfection, options, path="rigid"):
                load_factor=float(res.steps[-1].load_factor) if res.steps else 0.0,
                recorded_steps=sum(len(r.steps) for r in stages),
                newton=int(sum(st.iterations for r in stages for st in r.steps)),
-               flow_steps=int(sum(st.flow_steps for r in stages for st in r.steps)))
+               flow_steps=int(sum(st.flow_steps for r in stages for st in r.steps)),
+               relaxed_steps=sum(st.relaxed_residual is not None
+                                 for r in stages for st in r.steps),
+               relaxed_residual_max=max((st.relaxed_residual for r in stages for st in r.steps
+                                         if st.relaxed_residual is not None), default=None))
     if path == "rigid" and not converged:
         out["load_factor"] = 0.0 if len(stages) == 1 else out["load_factor"]
     if converged:
@@ -181,7 +185,9 @@ def main(argv=None):
                  f"converged: {out['converged']} ({out['message']}); load factor "
                  f"{out['load_factor']:.4g}; {out['recorded_steps']} steps, "
                  f"{out['newton']} Newton iterations, {out['flow_steps']} gradient-flow "
-                 f"steps, {out['wall_s']:.1f} s\n"]
+                 f"steps, {out['wall_s']:.1f} s; {out['relaxed_steps']} steps end on the "
+                 f"gradient flow's state (residual up to {out['relaxed_residual_max']} of the "
+                 f"force scale)\n"]
         if out["converged"]:
             lines.append("\n| quantity | FE | localizing helix | rel. error |\n|---|---|---|---|\n")
             for k in out["ref"]:

@@ -521,6 +521,9 @@ class Report:
     # load stepping and gradient flow
     flow_steps: int = 0
     relaxed: bool = False
+    #: the gradient flow's state was kept without a converged Newton polish:
+    #: its residual relative to the force scale (about relax_tol), else None
+    relaxed_residual: float = None
     lowest_eigenvalue: float = None
 
 

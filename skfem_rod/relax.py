@@ -49,6 +49,12 @@ it).  :func:`flow` runs it with
   below ``relax_tol`` times the force scale ``max(|f_ext|, |reactions|)``;
   the state is then polished by plain Newton (no viscous term) so that a
   relaxed step is an equilibrium to the same tolerance as any other step.
+  Where the polish does not converge (a very soft mode: the loop of a
+  localizing helix sliding along a long rod, lowest eigenvalue 1e-13 of the
+  stiffest, has a tiny Newton basin) the flow's state is kept, its residual
+  (about ``relax_tol``, 5e-8 to 1e-6 of the force scale there, above
+  ``rtol``) on ``Step.relaxed_residual``, a ``Result.log`` line and a
+  :class:`~skfem_rod.solver.RelaxedShortfall` warning.
 
 The load stepper (:func:`skfem_rod.solver.solve`, option ``snap="relax"``)
 calls a :class:`GradientFlow` in place of Newton inside the same
@@ -172,9 +178,16 @@ class GradientFlow:
                 if fin.converged and clearance_ok(rod, r, r2):
                     r, R, rep = r2, R2, fin
                     iters += fin.iterations
-                else:                   # the flow's state, residual ~ relax_tol
-                    rep = Report(True, history=rep.history,
-                                 evaluation=problem.evaluate(r, R, lam))
+                else:
+                    # the flow's state, kept with its residual (about
+                    # relax_tol, above rtol: a very soft mode, along which
+                    # Newton's basin is tiny): the step says so
+                    # (Report.relaxed_residual, Result.log, RelaxedShortfall)
+                    problem.calls["unpolished"] += 1
+                    ev = problem.evaluate(r, R, lam)
+                    rep = Report(True, history=rep.history, evaluation=ev,
+                                 relaxed_residual=problem.residual_norm(ev)
+                                 / problem.force_scale(ev))
                 rep.iterations, rep.flow_steps = iters, steps
                 return r, R, lam, rep
         return r, R, lam, Report(False, iterations=iters, flow_steps=steps,

@@ -22,6 +22,9 @@ class Step:
     time: float = 0.0              # pseudo-time along the load path
     flow_steps: int = 0            # gradient-flow steps (solve option snap="relax")
     lowest_eigenvalue: float = None  # of the symmetrized tangent (option stability)
+    #: the gradient flow's state kept without a converged Newton polish: its
+    #: residual relative to the force scale (about relax_tol, above rtol)
+    relaxed_residual: float = None
 
 
 @dataclass
@@ -122,7 +125,8 @@ class Result:
                                reactions=reactions, contact=contact,
                                time=float(lam if time is None else time),
                                flow_steps=int(report.flow_steps),
-                               lowest_eigenvalue=report.lowest_eigenvalue))
+                               lowest_eigenvalue=report.lowest_eigenvalue,
+                               relaxed_residual=report.relaxed_residual))
 
     def _contact_state(self, ce, report):
         """:class:`ContactState` of a converged contact evaluation."""

@@ -39,12 +39,11 @@ _NTERMS = 18
 def hat(a):
     """Skew matrix of ``a`` (``hat(a) @ b == cross(a, b)``)."""
     a = np.asarray(a, dtype=float)
-    z = np.zeros(a.shape[:-1])
-    return np.stack([
-        np.stack([z, -a[..., 2], a[..., 1]], axis=-1),
-        np.stack([a[..., 2], z, -a[..., 0]], axis=-1),
-        np.stack([-a[..., 1], a[..., 0], z], axis=-1),
-    ], axis=-2)
+    H = np.zeros(a.shape[:-1] + (3, 3))
+    H[..., 0, 1], H[..., 0, 2] = -a[..., 2], a[..., 1]
+    H[..., 1, 0], H[..., 1, 2] = a[..., 2], -a[..., 0]
+    H[..., 2, 0], H[..., 2, 1] = -a[..., 1], a[..., 0]
+    return H
 
 
 def vee(A):

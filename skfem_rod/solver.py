@@ -33,12 +33,19 @@ from .results import Result
 from .rotations import is_rotation
 from .stability import modes
 
-__all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall"]
+__all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall", "RelaxedShortfall"]
 
 
 class ContactShortfall(UserWarning):
     """The augmented-Lagrangian loop stopped at ``max_uzawa`` updates short of
     its tolerances in some steps (they are kept; ``Result.log`` names them)."""
+
+
+class RelaxedShortfall(UserWarning):
+    """Some steps end on the gradient flow's state (``snap="relax"``):
+    Newton's polish did not converge from it, so the residual there is
+    about ``relax_tol`` of the force scale, not ``rtol`` (they are kept;
+    ``Step.relaxed_residual`` and ``Result.log`` give it)."""
 
 
 def load_path(path):
@@ -207,6 +214,11 @@ class LoadStepper:
         self.result.append(lam, r, R, rep, time=t)
         if rep.uzawa_note:
             self.result.log.append(f"step to lam={lam:.6g}: {rep.uzawa_note}")
+        if rep.relaxed_residual is not None:
+            self.result.log.append(
+                f"step to lam={lam:.6g}: the gradient flow's state, Newton's polish did not "
+                f"converge from it: residual {rep.relaxed_residual:.2e} of the force scale "
+                f"(relax_tol={self.opts.relax_tol:g}, rtol={self.opts.rtol:g})")
         if callback is not None:
             callback(self.result, len(self.result.steps) - 1)
 
@@ -292,7 +304,15 @@ def follow_path(S, r, R, n_steps, times, values, callback):
 
 def warn_shortfall(result):
     """A :class:`ContactShortfall` warning naming the steps whose Uzawa loop
-    stopped short of its tolerances."""
+    stopped short of its tolerances, a :class:`RelaxedShortfall` one naming
+    the steps kept at the gradient flow's tolerance."""
+    relaxed = [k for k, st in enumerate(result.steps) if st.relaxed_residual is not None]
+    if relaxed:
+        worst = max(result.steps[k].relaxed_residual for k in relaxed)
+        warnings.warn(f"{len(relaxed)} step(s) end on the gradient flow's state without a "
+                      f"converged Newton polish (first: step {relaxed[0]}; residual up to "
+                      f"{worst:.2e} of the force scale, above rtol; see Result.log)",
+                      RelaxedShortfall, stacklevel=3)
     short = [k for k, st in enumerate(result.steps)
              if st.contact is not None and not st.contact.uzawa_converged]
     if short:

@@ -440,3 +440,42 @@ def test_docs_contact_table_matches_the_contact_specs():
             with pytest.raises(Exception):               # the scene validator's refusal
                 scene.CONTACT[name].check(args[name])
             scene.CONTACT[name].check(default if default not in (None, MISSING) else 1.0)
+
+
+def test_relaxed_state_without_polish_is_reported(monkeypatch):
+    """A step that ends on the gradient flow's state because Newton's
+    polish did not converge from it (a very soft mode: the localized loop of
+    tests/test_writhing.py) is kept, but says so: its residual relative to
+    the force scale on the Step, a Result.log line and a RelaxedShortfall
+    warning; where the polish converges nothing is reported."""
+    import warnings
+    from skfem_rod import newton as newton_module, relax
+    from skfem_rod.solver import RelaxedShortfall
+
+    plain = newton_module.newton
+
+    def static_fails(problem, r, R, lam, opts, prescribed=None, border=None):
+        out = plain(problem, r, R, lam, opts, prescribed=prescribed, border=border)
+        if problem.viscous is None and lam > 0:   # a load step, not a proximal step
+            out[3].converged = False
+        return out
+
+    def cantilever():
+        return (Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 6)
+                .clamp("start").add_force("end", [0.0, 2.0, 0.0]))
+
+    # every load step's Newton "fails": the flow relaxes it, the polish converges
+    monkeypatch.setattr(newton_module, "newton", static_fails)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RelaxedShortfall)
+        res = cantilever().solve(2, snap="relax")
+    assert res.converged, res.message
+    assert all(st.flow_steps > 0 and st.relaxed_residual is None for st in res.steps[1:])
+    # the polish fails too: the flow's state is kept and reported
+    monkeypatch.setattr(relax, "newton", static_fails)
+    with pytest.warns(RelaxedShortfall, match="gradient flow's state"):
+        res = cantilever().solve(2, snap="relax")
+    assert res.converged, res.message
+    for st in res.steps[1:]:
+        assert 1e-14 < st.relaxed_residual < 1e-6       # about relax_tol = 1e-8
+    assert sum("Newton's polish did not converge" in line for line in res.log) == 2

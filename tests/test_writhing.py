@@ -10,6 +10,7 @@ from scipy.optimize import minimize_scalar
 
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.analytic import localized_writhing
+from skfem_rod.solver import RelaxedShortfall
 
 L, B, C, EA = 100.0, 1.345, 0.789, 1e5
 SLACK, TURNS = 3.0, 27.0
@@ -32,7 +33,10 @@ def writhed():
     twisted = clamped(96, stretch, TURNS).solve(1)
     assert twisted.converged, twisted.message
     shorten = clamped(96, -(SLACK + stretch), 0.0)
-    result = shorten.solve(15, start=twisted, snap="relax", stability=True)
+    # the loop slides along the rod at almost no cost: Newton's polish does
+    # not converge from the flow's states, which are kept with their residual
+    with pytest.warns(RelaxedShortfall):
+        result = shorten.solve(15, start=twisted, snap="relax", stability=True)
     assert result.converged, result.message
     return twisted, result
 
@@ -101,3 +105,6 @@ def test_rigid_loading_path_is_stable_with_rising_tension(writhed):
     # the sliding mode of the loop along the rod is soft: +-1e-8)
     low = np.array([st.lowest_eigenvalue for st in result.steps[1:]])
     assert np.all(low > -1e-6)
+    # every step is an equilibrium to the gradient flow's tolerance at least
+    rel = [st.relaxed_residual for st in result.steps[1:] if st.relaxed_residual is not None]
+    assert all(x < 1e-5 for x in rel)
