@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rotations import (hat, expm, logm, tangent, tangent_inv,
+from .rotations import (cross, hat, expm, logm, tangent, tangent_inv,
                         dtangent_matrix, dtangent_form, d2tangent_form)
 
 #: local index (scikit-fem dof order 0, 1, 1/3, 2/3) of the reference node
@@ -143,7 +143,7 @@ def point_state(psi, dpsi, drho, eps0, C, second=True):
         G[..., 0:3, 3:6] = G_rp
         G[..., 3:6, 0:3] = np.swapaxes(G_rp, -1, -2)
         G_pp = (np.swapaxes(Tt, -1, -2) @ hat(Nm) @ hat(v) @ Tt
-                - dtangent_form(-psi, np.cross(Nm, v)))
+                - dtangent_form(-psi, cross(Nm, v)))
         # M . d2u: (psi, psi) and (psi', psi)
         G_pp = G_pp + d2tangent_form(-psi, Mm, dpsi)
         G[..., 3:6, 3:6] = G_pp          # symmetric (checked in tests)
@@ -194,7 +194,7 @@ def chart_curvature(loc, P, g):
         Gc[:, wa, rI] += hat(G_sp)
         Gc[:, wa, wa] += (Rr @ hat(g_rho) @ hat(loc.rho[:, I]) @ RrT
                           - hat(np.einsum("eij,ej->ei", Rr,
-                                          np.cross(g_rho, loc.rho[:, I]))))
+                                          cross(g_rho, loc.rho[:, I]))))
         if I == a:
             continue
         g_psi = g[:, 6 * I + 3:6 * I + 6]

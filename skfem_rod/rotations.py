@@ -26,7 +26,7 @@ for small angles, so nothing loses precision near the identity.
 import numpy as np
 
 __all__ = [
-    "hat", "vee", "expm", "logm", "tangent", "tangent_inv",
+    "cross", "hat", "vee", "expm", "logm", "tangent", "tangent_inv",
     "dtangent_matrix", "dtangent_form", "d2tangent_form", "coefficients",
     "quat_from_matrix", "matrix_from_quat", "quat_multiply", "quat_from_rotvec",
     "is_rotation", "rotate", "spin_between",
@@ -46,6 +46,18 @@ def hat(a):
     return H
 
 
+def cross(a, b):
+    """``np.cross`` of 3-vectors along the last axis, written out: the same
+    arithmetic (bit-for-bit), without ``np.cross``'s axis handling, which
+    cost more than the products on the small arrays of a rod."""
+    a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+    c = np.empty(a.shape)
+    c[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    c[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    c[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return c
+
+
 def vee(A):
     """Axial vector of the skew part of ``A`` (inverse of :func:`hat`)."""
     A = np.asarray(A, dtype=float)
@@ -55,10 +67,13 @@ def vee(A):
 
 
 def _series(x, coef):
-    """Horner evaluation of sum_k coef[k] x^k."""
-    out = np.zeros_like(x)
+    """Horner evaluation of sum_k coef[k] x^k; ``coef`` of shape ``(n,)``
+    or ``(n, m)`` (m series at once, results along a new last axis)."""
+    coef = np.asarray(coef)
+    xs = x if coef.ndim == 1 else x[..., None]
+    out = np.zeros(x.shape + coef.shape[1:])
     for c in coef[::-1]:
-        out = out * x + c
+        out = out * xs + c
     return out
 
 
@@ -73,6 +88,11 @@ _AX = np.array([(k + 1) * _A[k + 1] for k in range(_NTERMS - 1)])
 _BX = np.array([(k + 1) * _B[k + 1] for k in range(_NTERMS - 1)])
 _AXX = np.array([(k + 1) * _AX[k + 1] for k in range(_NTERMS - 2)])
 _BXX = np.array([(k + 1) * _BX[k + 1] for k in range(_NTERMS - 2)])
+# the series of coefficients(psi, order) side by side (zero-padded), one
+# Horner loop for all
+_SERIES = {k: np.stack([np.pad(a, (0, _NTERMS - a.size)) for a in arrays], axis=1)
+           for k, arrays in ((0, (_A, _B)), (1, (_A, _B, _AX, _BX)),
+                             (2, (_A, _B, _AX, _BX, _AXX, _BXX)))}
 # gamma(t) = (1 - (t/2) cot(t/2)) / t^2 = sum_{n>=1} |B_2n| t^(2n-2) / (2n)!
 _G = np.array([abs(_b) / _fact(2 * n) for n, _b in
                zip(range(1, 16), __import__("scipy.special").special.bernoulli(30)[2::2])])
@@ -92,20 +112,15 @@ def coefficients(psi, order=0):
     xs = np.where(small, x, 0.0)
     tl = np.where(small, 1.0, t)          # safe large-angle argument
     s, c = np.sin(tl), np.cos(tl)
-    out = [np.where(small, _series(xs, _A), (1 - c) / tl**2),
-           np.where(small, _series(xs, _B), (tl - s) / tl**3)]
+    series = _series(xs, _SERIES[order])             # all of them in one Horner loop
+    closed = [(1 - c) / tl**2, (tl - s) / tl**3]
     if order >= 1:
-        out += [np.where(small, _series(xs, _AX),
-                         (tl * s / 2 + c - 1) / tl**4),
-                np.where(small, _series(xs, _BX),
-                         (-tl * c - 2 * tl + 3 * s) / (2 * tl**5))]
+        closed += [(tl * s / 2 + c - 1) / tl**4,
+                   (-tl * c - 2 * tl + 3 * s) / (2 * tl**5)]
     if order >= 2:
-        out += [np.where(small, _series(xs, _AXX),
-                         (tl**2 * c - 5 * tl * s - 8 * c + 8) / (4 * tl**6)),
-                np.where(small, _series(xs, _BXX),
-                         (tl**2 * s + 7 * tl * c + 8 * tl - 15 * s)
-                         / (4 * tl**7))]
-    return tuple(out)
+        closed += [(tl**2 * c - 5 * tl * s - 8 * c + 8) / (4 * tl**6),
+                   (tl**2 * s + 7 * tl * c + 8 * tl - 15 * s) / (4 * tl**7)]
+    return tuple(np.where(small, series[..., k], f) for k, f in enumerate(closed))
 
 
 def expm(psi):
@@ -177,7 +192,7 @@ def quat_multiply(p, q):
     pw, pv = p[..., :1], p[..., 1:]
     qw, qv = q[..., :1], q[..., 1:]
     w = pw * qw - np.sum(pv * qv, axis=-1, keepdims=True)
-    v = pw * qv + qw * pv + np.cross(pv, qv)
+    v = pw * qv + qw * pv + cross(pv, qv)
     return np.concatenate([w, v], axis=-1)
 
 
@@ -231,8 +246,8 @@ def dtangent_matrix(psi, p):
     ``T`` in direction ``a``, applied to ``p``)."""
     psi, p = np.broadcast_arrays(np.asarray(psi, float), np.asarray(p, float))
     al, be, ax, bx = coefficients(psi, 1)
-    pxp = np.cross(psi, p)
-    v = ax[..., None] * pxp + bx[..., None] * np.cross(psi, pxp)
+    pxp = cross(psi, p)
+    v = ax[..., None] * pxp + bx[..., None] * cross(psi, pxp)
     return (-al[..., None, None] * hat(p)
             - be[..., None, None] * (hat(pxp) + hat(psi) @ hat(p))
             + 2 * v[..., :, None] * psi[..., None, :])
@@ -244,7 +259,7 @@ def dtangent_form(psi, h):
     al, be, ax, bx = coefficients(psi, 1)
     hp = np.einsum("...i,...i->...", h, psi)
     x = np.einsum("...i,...i->...", psi, psi)
-    hxp = np.cross(h, psi)
+    hxp = cross(h, psi)
     v = ax[..., None] * hxp + bx[..., None] * (hp[..., None] * psi - x[..., None] * h)
     return (al[..., None, None] * hat(h)
             + be[..., None, None] * (hp[..., None, None] * np.eye(3)
@@ -259,13 +274,13 @@ def d2tangent_form(psi, m, p):
                                     np.asarray(m, float), np.asarray(p, float))
     al, be, ax, bx, axx, bxx = coefficients(psi, 2)
     mp = np.einsum("...i,...i->...", m, p)
-    psixp = np.cross(psi, p)
+    psixp = cross(psi, p)
     pp = np.einsum("...i,...i->...", psi, p)
-    w1 = (ax[..., None] * np.cross(p, m)
-          + bx[..., None] * (np.cross(psixp, m) + pp[..., None] * m
+    w1 = (ax[..., None] * cross(p, m)
+          + bx[..., None] * (cross(psixp, m) + pp[..., None] * m
                              - mp[..., None] * psi))
     m_psixp = np.einsum("...i,...i->...", m, psixp)
-    m_psipsixp = np.einsum("...i,...i->...", m, np.cross(psi, psixp))
+    m_psipsixp = np.einsum("...i,...i->...", m, cross(psi, psixp))
     s1 = ax * m_psixp + bx * m_psipsixp
     s2 = axx * m_psixp + bxx * m_psipsixp
     I = np.eye(3)

@@ -49,3 +49,14 @@ def coulomb_checks(result, gamma_T, gamma_R):
                        / (np.linalg.norm(f[slip], axis=1)[big] * gn[big]))
                 assert cos.min() > 1 - 1e-5
         assert c.dissipation >= 0
+
+
+def two_cycles(h, floor):
+    """Indices ``k`` where the residuals ``h`` alternate with period 2
+    above ``floor``: ``h[k] ~ h[k-2]`` and ``h[k-1] ~ h[k-3]`` (within 5 %),
+    ``h[k]`` and ``h[k-1]`` apart by more than 20 % (a stagnating history is
+    no cycle)."""
+    h = np.asarray(h)
+    return [k for k in range(3, h.size)
+            if h[k] > floor and abs(h[k] / h[k - 2] - 1) < 0.05
+            and abs(h[k - 1] / h[k - 3] - 1) < 0.05 and abs(h[k] / h[k - 1] - 1) > 0.2]

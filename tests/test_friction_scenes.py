@@ -128,3 +128,52 @@ def test_plectoneme_cycle_with_friction(plectoneme_cycle):
     assert md[k_dn] < 0.5 * mu[k_up]
     # back at zero turns: the straight rod again, no torque
     assert abs(rec[-1]["torque"]) < 1e-8 and rec[-1]["contacts"] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("gamma_T", [0.0, 0.3])
+def test_uzawa_mode_newton_solves_converge_fast_without_cycles(monkeypatch, gamma_T):
+    """Every Newton solve of the rotational-friction scene in the default
+    (Uzawa) contact solve, rotational friction alone and with tangential
+    friction too: no residual history 2-cycles; from the largest residual
+    of a solve to the round-off floor (1e-8 here; about 1e-9 for this stiff
+    rod) at most 6 iterations, with a superlinear step among them
+    (``log(r_{k+1}/s) / log(r_k/s) >= 1.5``, ``s`` the largest residual: 2
+    for a quadratic step) or a drop by 1e3.  (Coulomb's law on the
+    rotational scene: the tests above; with both laws on, the tangential
+    force is aligned with the slip only to the Uzawa friction tolerance:
+    docs/friction.md.)"""
+    from skfem_rod import newton as newton_module
+    from helpers import two_cycles
+    floor = 1e-8
+    seen = []
+    plain = newton_module.newton
+
+    def spy(*a, **k):
+        out = plain(*a, **k)
+        seen.append(out[3])
+        return out
+
+    monkeypatch.setattr(newton_module, "newton", spy)
+    rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+    rod.enable_contact(gamma_R=rf.EPS, gamma_T=gamma_T)
+    res = rod.solve(8)
+    assert res.converged, res.message
+    checked = 0
+    for rep in seen:
+        h = np.asarray(rep.history)
+        if not rep.converged or h.size < 2:
+            continue
+        assert not two_cycles(h, floor), h
+        top = int(np.argmax(h))
+        below = np.flatnonzero(h[top:] <= floor)
+        assert below.size, h
+        k = top + below[0]
+        assert k - top <= 6, h
+        if k - top >= 2:
+            x = np.log(h[top:k + 1] / h[top])
+            q = [x[j] / x[j - 1] for j in range(2, x.size)]
+            drops = h[top + 1:k + 1] / h[top:k]
+            assert max(q, default=0.0) >= 1.5 or drops.min() <= 1e-3, h
+        checked += 1
+    assert checked >= 8

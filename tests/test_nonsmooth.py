@@ -14,7 +14,7 @@ from skfem_rod.contact import friction as law
 from skfem_rod.problem import Problem
 from skfem_rod.rotations import expm
 
-from helpers import coulomb_checks
+from helpers import coulomb_checks, two_cycles
 from test_contact import SEC, hairpin
 
 EPS = 0.105
@@ -151,17 +151,6 @@ def _histories(rod, mode, monkeypatch, **solve):
     monkeypatch.setattr(nonsmooth, "contact_newton", spy)
     res = rod.solve(contact_solve=mode, **solve)
     return res, seen
-
-
-def two_cycles(h, floor):
-    """Indices ``k`` where the residuals ``h`` alternate with period 2
-    above ``floor``: ``h[k] ~ h[k-2]`` and ``h[k-1] ~ h[k-3]`` (within 5 %),
-    ``h[k]`` and ``h[k-1]`` apart by more than 20 % (a stagnating history is
-    no cycle)."""
-    h = np.asarray(h)
-    return [k for k in range(3, h.size)
-            if h[k] > floor and abs(h[k] / h[k - 2] - 1) < 0.05
-            and abs(h[k - 1] / h[k - 3] - 1) < 0.05 and abs(h[k] / h[k - 1] - 1) > 0.2]
 
 
 def _check_quadratic(reports, floor):
