@@ -522,7 +522,7 @@ class Report:
     flow_steps: int = 0
     relaxed: bool = False
     #: the gradient flow's state was kept without a converged Newton polish:
-    #: its residual relative to the force scale (about relax_tol), else None
+    #: its residual relative to the force scale (above rtol), else None
     relaxed_residual: float = None
     lowest_eigenvalue: float = None
 

@@ -52,9 +52,10 @@ it).  :func:`flow` runs it with
   Where the polish does not converge (a very soft mode: the loop of a
   localizing helix sliding along a long rod, lowest eigenvalue 1e-13 of the
   stiffest, has a tiny Newton basin) the flow's state is kept, its residual
-  (about ``relax_tol``, 5e-8 to 1e-6 of the force scale there, above
-  ``rtol``) on ``Step.relaxed_residual``, a ``Result.log`` line and a
-  :class:`~skfem_rod.solver.RelaxedShortfall` warning.
+  (5e-8 to 4e-6 of the force scale there, above ``rtol``: the proximal
+  steps are solved to 1e-7 only) on ``Step.relaxed_residual``, a
+  ``Result.log`` line and a :class:`~skfem_rod.solver.RelaxedShortfall`
+  warning.
 
 The load stepper (:func:`skfem_rod.solver.solve`, option ``snap="relax"``)
 calls a :class:`GradientFlow` in place of Newton inside the same

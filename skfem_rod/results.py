@@ -23,7 +23,7 @@ class Step:
     flow_steps: int = 0            # gradient-flow steps (solve option snap="relax")
     lowest_eigenvalue: float = None  # of the symmetrized tangent (option stability)
     #: the gradient flow's state kept without a converged Newton polish: its
-    #: residual relative to the force scale (about relax_tol, above rtol)
+    #: residual relative to the force scale (above rtol)
     relaxed_residual: float = None
 
 

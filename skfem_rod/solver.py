@@ -44,7 +44,7 @@ class ContactShortfall(UserWarning):
 class RelaxedShortfall(UserWarning):
     """Some steps end on the gradient flow's state (``snap="relax"``):
     Newton's polish did not converge from it, so the residual there is
-    about ``relax_tol`` of the force scale, not ``rtol`` (they are kept;
+    above ``rtol`` of the force scale (they are kept;
     ``Step.relaxed_residual`` and ``Result.log`` give it)."""
 
 
