@@ -18,8 +18,9 @@ Two load paths to the same end conditions (``--path``):
 * ``rigid`` (default; the protocol of the experiments on localized
   writhing, Thompson & Champneys 1996): first twist the rod by the 27
   turns while its end is held a little beyond the rest length (end
-  tension ``T0 = 0.5``, above the Greenhill tension ``M^2 / 4B = 0.333`` of
-  the 27 turns, so the straight twisted rod is stable: plain load steps),
+  tension ``T0`` = 1.5 times the Greenhill tension ``M^2 / 4B`` of the
+  turns, 0.4998 for 27 turns, so the straight twisted rod is stable: plain
+  load steps),
   then bring the end in by the slack plus that stretch with the end
   rotation held (a second rod started from the first's state,
   ``Rod.solve(start=...)``).  Under this rigid loading the localizing
@@ -79,16 +80,26 @@ def build(n_elements=128, imperfection=1e-3, slack=SLACK, turns=TURNS):
     return rod
 
 
-#: end tension of the twisting stage of the rigid path (above the Greenhill
-#: tension M^2 / 4B = 0.333 of 27 straight turns)
-T_TWIST = 0.5
+#: end tension of the twisting stage of the rigid path, in Greenhill
+#: tensions M^2 / 4B of the straight twisted rod (0.333 for 27 turns): the
+#: straight rod is stable there (the clamped rod's threshold is higher still)
+TWIST_TENSION = 1.5
+
+
+def twist_tension(turns=TURNS):
+    """End tension of the twisting stage: ``TWIST_TENSION`` times the
+    Greenhill tension ``M^2 / 4B``, ``M = C 2 pi turns / L`` (0.4998 for 27
+    turns)."""
+    M = C * 2 * np.pi * turns / L
+    return TWIST_TENSION * M * M / (4 * B)
 
 
 def build_rigid(n_elements=128, imperfection=1e-3, slack=SLACK, turns=TURNS):
     """The two rods of the rigid path: ``twist`` (the end held at the stretch
-    ``T_TWIST L / EA`` and turned by ``turns``) and ``shorten`` (the end
-    rotation held, the end moved in by ``slack`` plus that stretch)."""
-    stretch = T_TWIST * L / EA
+    ``T L / EA``, ``T`` = :func:`twist_tension`, and turned by ``turns``) and
+    ``shorten`` (the end rotation held, the end moved in by ``slack`` plus
+    that stretch)."""
+    stretch = twist_tension(turns) * L / EA
 
     return (build(n_elements, imperfection, slack=-stretch, turns=turns),
             build(n_elements, imperfection, slack=slack + stretch, turns=0.0))
