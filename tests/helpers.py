@@ -60,3 +60,18 @@ def two_cycles(h, floor):
     return [k for k in range(3, h.size)
             if h[k] > floor and abs(h[k] / h[k - 2] - 1) < 0.05
             and abs(h[k - 1] / h[k - 3] - 1) < 0.05 and abs(h[k] / h[k - 1] - 1) > 0.2]
+
+
+def spy_reports(monkeypatch, module, name):
+    """Replace ``module.name`` (a solve returning ``(r, R, lam, report)``)
+    by a wrapper that records every report; returns the list it fills."""
+    seen = []
+    orig = getattr(module, name)
+
+    def spy(*a, **k):
+        out = orig(*a, **k)
+        seen.append(out[3])
+        return out
+
+    monkeypatch.setattr(module, name, spy)
+    return seen

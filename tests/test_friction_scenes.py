@@ -144,17 +144,9 @@ def test_uzawa_mode_newton_solves_converge_fast_without_cycles(monkeypatch, gamm
     force is aligned with the slip only to the Uzawa friction tolerance:
     docs/friction.md.)"""
     from skfem_rod import newton as newton_module
-    from helpers import two_cycles
+    from helpers import spy_reports, two_cycles
     floor = 1e-8
-    seen = []
-    plain = newton_module.newton
-
-    def spy(*a, **k):
-        out = plain(*a, **k)
-        seen.append(out[3])
-        return out
-
-    monkeypatch.setattr(newton_module, "newton", spy)
+    seen = spy_reports(monkeypatch, newton_module, "newton")
     rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
     rod.enable_contact(gamma_R=rf.EPS, gamma_T=gamma_T)
     res = rod.solve(8)

@@ -14,7 +14,7 @@ from skfem_rod.contact import friction as law
 from skfem_rod.problem import Problem
 from skfem_rod.rotations import expm
 
-from helpers import coulomb_checks, two_cycles
+from helpers import coulomb_checks, spy_reports, two_cycles
 from test_contact import SEC, hairpin
 
 EPS = 0.105
@@ -141,14 +141,7 @@ def test_same_converged_state_as_uzawa(pressed):
 
 def _histories(rod, mode, monkeypatch, **solve):
     """The merit histories of every generalized-Newton solve of a run."""
-    seen = []
-    orig = nonsmooth.contact_newton
-
-    def spy(*a, **k):
-        out = orig(*a, **k)
-        seen.append(out[3])
-        return out
-    monkeypatch.setattr(nonsmooth, "contact_newton", spy)
+    seen = spy_reports(monkeypatch, nonsmooth, "contact_newton")
     res = rod.solve(contact_solve=mode, **solve)
     return res, seen
 
