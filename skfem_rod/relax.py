@@ -180,10 +180,10 @@ class GradientFlow:
                     r, R, rep = r2, R2, fin
                     iters += fin.iterations
                 else:
-                    # the flow's state, kept with its residual (about
-                    # relax_tol, above rtol: a very soft mode, along which
-                    # Newton's basin is tiny): the step says so
-                    # (Report.relaxed_residual, Result.log, RelaxedShortfall)
+                    # the flow's state, kept with its residual (above rtol:
+                    # a very soft mode, along which Newton's basin is tiny):
+                    # the step says so (Report.relaxed_residual, Result.log,
+                    # RelaxedShortfall)
                     problem.calls["unpolished"] += 1
                     ev = problem.evaluate(r, R, lam)
                     rep = Report(True, history=rep.history, evaluation=ev,

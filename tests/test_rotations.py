@@ -480,3 +480,20 @@ def test_coefficients_accuracy(t):
     err = np.abs(got - ref)
     tol = 50 * EPS * _roundoff_envelope(t)
     assert np.all(err <= tol), (t, err / tol)
+
+
+def test_cross_and_the_series_are_the_plain_ones_bit_for_bit():
+    # rotations.cross is np.cross written out (same products, same order),
+    # with broadcasting; coefficients() evaluates all its series in one
+    # Horner loop: each equals its own Horner evaluation exactly
+    from skfem_rod import rotations as rot
+    rng = np.random.default_rng(7)
+    a, b = rng.standard_normal((5, 4, 3)), rng.standard_normal((4, 3))
+    assert np.array_equal(rot.cross(a, b), np.cross(a, b))
+    psi = rng.standard_normal((50, 3)) * rng.uniform(0.0, 3.0, (50, 1))
+    x = np.einsum("...i,...i->...", psi, psi)
+    small = np.sqrt(x) < rot._SERIES_T
+    one_by_one = [rot._A, rot._B, rot._AX, rot._BX, rot._AXX, rot._BXX]
+    for k, value in enumerate(rot.coefficients(psi, 2)):
+        alone = rot._series(np.where(small, x, 0.0), one_by_one[k])
+        assert np.array_equal(value[small], alone[small])
