@@ -105,7 +105,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--old", required=True, help="checkout of the code before the core")
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--out", default=str(HERE / "RESULTS_core.md"))
+    ap.add_argument("--out", default=None,
+                    help="write the report to this file (default: print it; "
+                         "benchmarks/RESULTS_core.md holds the issue-12 record)")
     a = ap.parse_args(argv)
     cases = [("statics", 100), ("statics", 1000), ("contact", 200), ("contact", 1000),
              ("friction", 200), ("friction", 1000)]
@@ -128,7 +130,7 @@ def main(argv=None):
     text = "\n".join([
         "# Solver core: per-iteration cost and Newton iterations, before and after",
         "",
-        f"Command: `python benchmarks/bench_core.py --old <checkout of 5e254f0> "
+        f"Command: `python benchmarks/bench_core.py --old {a.old} "
         f"--repeats {a.repeats}` (each figure a fresh subprocess; old and new interleaved "
         "repeat by repeat on the shared 2-core machine; medians).",
         "",
@@ -152,7 +154,10 @@ def main(argv=None):
         "bend45: the 45-degree bend with a solid circle of slenderness L / radius = 1e4, "
         "8 elements.",
         ""])
-    Path(a.out).write_text(text)
+    if a.out is None:
+        print(text)
+    else:
+        Path(a.out).write_text(text)
 
 
 if __name__ == "__main__":
