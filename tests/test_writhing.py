@@ -4,39 +4,32 @@ rod is twisted by 27 turns under a small end stretch (straight and stable),
 then its end is brought in by the slack with the end rotation held.  The
 equilibrium at the end is compared with the localizing helix of the
 infinite rod (:func:`skfem_rod.analytic.localized_writhing`)."""
+import importlib.util
+import pathlib
+
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from skfem_rod import Rod, Section, geometry
 from skfem_rod.analytic import localized_writhing
 from skfem_rod.solver import RelaxedShortfall
 
-L, B, C, EA = 100.0, 1.345, 0.789, 1e5
-SLACK, TURNS = 3.0, 27.0
-T_TWIST = 0.5                      # above the Greenhill tension M^2/4B = 0.333
-
-
-def clamped(n_elements, displacement, turns):
-    rod = Rod(geometry.straight(L), Section(EA=EA, GA1=EA, GA2=EA, EI1=B, EI2=B, GJ=C,
-                                            radius=0.35), n_elements)
-    rod.clamp("start")
-    rod.prescribe_displacement("end", [displacement, 0.0, 0.0])
-    rod.prescribe_rotation("end", [2 * np.pi * turns, 0.0, 0.0])
-    rod.add_force(L / 2, [0.0, 1e-3 * B / L ** 2, 0.0], constant=True)
-    return rod
+# the case and its rigid path as the benchmark builds them
+_spec = importlib.util.spec_from_file_location(
+    "bench_writhing",
+    pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "bench_writhing.py")
+bw = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(bw)
+L, B, C, SLACK, TURNS = bw.L, bw.B, bw.C, bw.SLACK, bw.TURNS
 
 
 @pytest.fixture(scope="module")
 def writhed():
-    stretch = T_TWIST * L / EA
-    twisted = clamped(96, stretch, TURNS).solve(1)
-    assert twisted.converged, twisted.message
-    shorten = clamped(96, -(SLACK + stretch), 0.0)
     # the loop slides along the rod at almost no cost: Newton's polish does
     # not converge from the flow's states, which are kept with their residual
     with pytest.warns(RelaxedShortfall):
-        result = shorten.solve(15, start=twisted, snap="relax", stability=True)
+        twisted, result = bw.solve_rigid(96, 15, 1e-3, dict(snap="relax", stability=True))
+    assert twisted.converged, twisted.message
     assert result.converged, result.message
     return twisted, result
 
@@ -60,7 +53,8 @@ def test_twisting_stage_stays_straight_and_stable(writhed):
     force, moment = twisted.reaction("end")
     # straight twisted rod: M = C 2 pi n / L, T = EA stretch / L
     assert moment[0] == pytest.approx(C * 2 * np.pi * TURNS / L, rel=1e-9)
-    assert force[0] == pytest.approx(T_TWIST, rel=1e-6)
+    assert force[0] == pytest.approx(bw.twist_tension(TURNS), rel=1e-6)
+    assert bw.twist_tension(TURNS) > (moment[0] ** 2 / (4 * B))     # above Greenhill
     assert np.abs(st.r[:, 1:]).max() < 1e-5 * L
 
 
