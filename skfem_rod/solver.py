@@ -305,7 +305,8 @@ def follow_path(S, r, R, n_steps, times, values, callback):
 def warn_shortfall(result):
     """A :class:`ContactShortfall` warning naming the steps whose Uzawa loop
     stopped short of its tolerances, a :class:`RelaxedShortfall` one naming
-    the steps kept at the gradient flow's tolerance."""
+    the steps that end on the gradient flow's state (Newton's polish did not
+    converge there)."""
     relaxed = [k for k, st in enumerate(result.steps) if st.relaxed_residual is not None]
     if relaxed:
         worst = max(result.steps[k].relaxed_residual for k in relaxed)
