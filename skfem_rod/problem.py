@@ -512,6 +512,7 @@ class Report:
     uzawa_converged: bool = True
     uzawa_note: str = ""
     friction_moved: float = 0.0
+    friction_misfit: float = 0.0     # augmented.coulomb_misfit of the last pass
     # generalized Newton (skfem_rod.nonsmooth): |C| per iteration and the
     # iteration from which the multipliers were held
     complementarity: list = None

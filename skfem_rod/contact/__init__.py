@@ -53,7 +53,9 @@ class ContactOptions:
         unit length, eq. 4.2c); default ``penalty / eps**2``.
     friction_tolerance : Uzawa also iterates until every friction
         multiplier moved by less than ``friction_tolerance * gamma f_N``
-        (largest over the points); default 1e-3.
+        (largest over the points) and the force of every slipping point is
+        within ``friction_tolerance * gamma f_N`` of its slip's direction
+        (``augmented.coulomb_misfit``); default 1e-3.
     penalty_growth : adaptive penalty of the Uzawa loop (the method of
         multipliers' penalty update, ``solver._adapt_penalty``): at a point
         still short of its tolerance whose violation did not drop by a factor
@@ -102,7 +104,9 @@ class ContactOptions:
     mu_R: float = _field(None, "number", "rotational friction compliance (default: penalty "
                                          "/ eps^2)", lo=0.0)
     friction_tolerance: float = _field(1e-3, "number", "Uzawa tolerance of the friction "
-                                                       "multipliers (times gamma f_N)", lo=0.0)
+                                                       "multipliers and of the forces' "
+                                                       "alignment with the slip (times "
+                                                       "gamma f_N)", lo=0.0)
     penalty_growth: float = _field(4.0, "number", "adaptive Uzawa penalty: growth factor where "
                                                   "the violation stalls (1: fixed penalty)",
                                    lo=1.0, lo_open=False)
