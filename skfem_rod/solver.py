@@ -12,7 +12,8 @@ The loop, in plain sight::
                 applied on the first iteration
             [snap="relax": a failed step is relaxed by the gradient flow
              (relax.py); stability=True: an unstable equilibrium is pushed
-             off along its unstable mode and relaxed]
+             off along its unstable mode and relaxed, up to MAX_PUSHES
+             times; still unstable: the step fails]
         converged: keep the step, commit it (friction slips start there),
                    let dt grow back after two successes
         failed:    halve dt; stop with the converged steps if dt < min_step
@@ -34,6 +35,12 @@ from .rotations import is_rotation
 from .stability import modes
 
 __all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall", "RelaxedShortfall"]
+
+#: pushes off a saddle per step (snap="relax", stability=True): along the
+#: unstable mode, the other way, then each twice as far.  One push was all
+#: before; the pressed figure-eight's step to load factor 0.2 relaxed back
+#: onto its saddle (lowest eigenvalue -7.2e-4) and was recorded as it was
+MAX_PUSHES = 4
 
 
 class ContactShortfall(UserWarning):
@@ -195,15 +202,31 @@ class LoadStepper:
         if not (rep.converged and opts.stability):
             return r1, R1, rep
         low, mode, negative = self.lowest_mode(r1, R1, lam_new)
-        if negative and relax:
+        # off a saddle (snap="relax"): pushed along its unstable mode and
+        # relaxed; a flow that comes back onto a saddle is pushed again, the
+        # other way, then twice as far (MAX_PUSHES in all), and the step
+        # fails rather than record the saddle.  (snap="cut" records it, with
+        # its eigenvalue: stability=True is then a diagnostic)
+        pushes = 0
+        while negative and relax and pushes < MAX_PUSHES:
             log.append(f"step to lam={lam_new:.6g}: unstable equilibrium (lowest eigenvalue "
                        f"{low:.3e}); relaxing along the unstable mode")
-            r_p, R_p = p.push(r1, R1, mode, p.push_size)
-            r1, R1, rep = step(p, r_p, R_p, lam_new, None, opts,
-                               inner=lambda *a, **k: self.flow(*a, descent=True, **k))
-            rep.relaxed = rep.converged
-            if rep.converged:
-                low = self.lowest_mode(r1, R1, lam_new)[0]
+            sign, size = (-1.0) ** pushes, p.push_size * 2.0 ** (pushes // 2)
+            pushes += 1
+            r_p, R_p = p.push(r1, R1, sign * mode, size)
+            trial = step(p, r_p, R_p, lam_new, None, opts,
+                         inner=lambda *a, **k: self.flow(*a, descent=True, **k))
+            if not trial[2].converged:
+                r1, R1, rep = trial
+                break
+            r1, R1, rep = trial
+            rep.relaxed = True
+            low, mode, negative = self.lowest_mode(r1, R1, lam_new)
+        if rep.converged and negative and pushes:
+            rep.converged = False
+            rep.reason = (f"an unstable equilibrium (lowest eigenvalue {low:.3e})"
+                          + (f" after {pushes} pushes off it along its unstable mode"
+                             if pushes else ""))
         if rep.converged:
             rep.lowest_eigenvalue = low
         return r1, R1, rep

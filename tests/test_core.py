@@ -18,6 +18,7 @@ one Newton, one augmented-Lagrangian loop used by every loop.
   solve and keeps its multipliers.
 """
 import ast
+import importlib.util
 import pathlib
 
 import numpy as np
@@ -399,9 +400,52 @@ def test_crossing_strands_never_converge_through_each_other(crossing):
     else:
         # far beyond where the other stops and beyond 0.22, where pairs keyed
         # by element pair stalled (the minimum crossed a node and lost its
-        # multiplier); it ends near 0.72, where the pressed strands roll over
-        # each other (the tangent turns indefinite; docs/crossing-contact.md)
+        # multiplier); it ends near 0.72.  The states past load factor 0.15
+        # are saddles (the pressed strands roll off each other: next test)
         assert res.steps[-1].load_factor > 0.7
+
+
+def _bench_figure_eight():
+    spec = importlib.util.spec_from_file_location(
+        "bench_figure_eight",
+        pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "bench_figure_eight.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.slow
+def test_pressed_figure_eight_rolls_off_onto_stable_states_to_full_load():
+    """The figure-eight above (benchmarks/bench_figure_eight.py), pressed by
+    its point forces.  Load stepping alone follows the pressed state, which
+    is a saddle from load factor 0.15 on (lowest eigenvalue of the tangent
+    negative; the onset is the same at 60 and 120 elements): the two
+    strands, bent into opposite tents by the forces, sit tip on tip.  With
+    ``snap="relax", stability=True`` the solve leaves it along its unstable
+    mode: the strands roll off each other, the pushed-down point ends far
+    below the pushed-up one, and every recorded state to load factor 1 is
+    stable, an equilibrium polished by Newton, with the strands touching
+    and apart by their true distance to the contact tolerance."""
+    bench = _bench_figure_eight()
+    eps = bench.EPS
+    # the pressed state of plain load stepping: stable at 0.1, a saddle at 0.2
+    _, res, rows, _, _ = bench.run(2, path=[0.0, 0.2], snap="cut")
+    assert res.converged, res.message
+    at = {round(r["lam"], 9): r for r in rows}
+    assert at[0.1]["eig"] > 0 > at[0.2]["eig"]
+    assert at[0.2]["height"] > 0                      # still pressed tip on tip
+    # relaxed off the saddles to full load
+    rod, res, rows, _, caught = bench.run(5)
+    assert res.converged, res.message
+    assert not caught, caught                         # no Relaxed/ContactShortfall
+    tol = rod.contact.tolerance * eps
+    for r in rows:
+        assert r["eig"] > 0
+        assert r["relaxed"] is None
+        assert r["penetration"] <= tol
+    assert sum(r["flow"] for r in rows) > 0
+    assert rows[-1]["height"] < -100 * eps
+    assert rows[-1]["distance"] <= 2 * eps * (1 + 1e-3)   # still in contact
 
 
 def test_docs_contact_table_matches_the_contact_specs():
