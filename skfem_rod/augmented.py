@@ -25,6 +25,7 @@ import numpy as np
 
 from .contact.friction import SLIP
 from .contact.law import gap, uzawa_update
+from .rotations import cross
 
 #: the adaptive penalty raises the penalty at a point whose violation did
 #: not drop below this fraction of the last one (Bertsekas' 0.25)
@@ -310,7 +311,7 @@ def coulomb_misfit(problem, out):
             f, g, bound = f[slip], g[slip], gamma * out.fN[slip]
             gn = np.linalg.norm(g, axis=1)
             big = (gn > c.friction_tolerance * mu * bound) & (bound > 0)
-            across = np.linalg.norm(np.cross(f[big], g[big]), axis=1) / gn[big]
+            across = np.linalg.norm(cross(f[big], g[big]), axis=1) / gn[big]
             worst = max(worst, float((across / bound[big]).max(initial=0.0)))
     return worst
 
