@@ -38,8 +38,9 @@ __all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall", "Relaxe
 
 #: pushes off a saddle per step (snap="relax", stability=True): along the
 #: unstable mode, the other way, then each twice as far.  One push was all
-#: before; the pressed figure-eight's step to load factor 0.2 relaxed back
-#: onto its saddle (lowest eigenvalue -7.2e-4) and was recorded as it was
+#: before: in the pressed figure-eight's step to load factor 0.2 the
+#: relaxation off one saddle ended on another (lowest eigenvalue -7.2e-4),
+#: which was recorded (benchmarks/RESULTS_figure_eight.md)
 MAX_PUSHES = 4
 
 
@@ -214,19 +215,17 @@ class LoadStepper:
             sign, size = (-1.0) ** pushes, p.push_size * 2.0 ** (pushes // 2)
             pushes += 1
             r_p, R_p = p.push(r1, R1, sign * mode, size)
-            trial = step(p, r_p, R_p, lam_new, None, opts,
-                         inner=lambda *a, **k: self.flow(*a, descent=True, **k))
-            if not trial[2].converged:
-                r1, R1, rep = trial
+            r1, R1, rep = step(p, r_p, R_p, lam_new, None, opts,
+                               inner=lambda *a, **k: self.flow(*a, descent=True, **k))
+            if not rep.converged:
                 break
-            r1, R1, rep = trial
             rep.relaxed = True
             low, mode, negative = self.lowest_mode(r1, R1, lam_new)
         if rep.converged and negative and pushes:
             rep.converged = False
-            rep.reason = (f"an unstable equilibrium (lowest eigenvalue {low:.3e})"
-                          + (f" after {pushes} pushes off it along its unstable mode"
-                             if pushes else ""))
+            rep.reason = (f"an unstable equilibrium (lowest eigenvalue {low:.3e}) after "
+                          f"{pushes} pushes off saddles along their unstable modes")
+            p.multipliers = saved                  # those of the rejected step are void
         if rep.converged:
             rep.lowest_eigenvalue = low
         return r1, R1, rep
