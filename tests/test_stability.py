@@ -260,3 +260,30 @@ def test_tangent_symmetric_at_equilibrium_only_for_conservative_loads():
 def test_docstrings():
     failed, attempted = doctest.testmod(stability, optionflags=doctest.ELLIPSIS)
     assert attempted > 0 and failed == 0
+
+
+def test_relax_never_records_a_saddle(monkeypatch):
+    """snap="relax", stability=True: a step that lands on a saddle is pushed
+    off along its unstable mode and relaxed, at most solver.MAX_PUSHES
+    times; where every relaxed state is still a saddle (forced here: every
+    state reads as unstable) the step fails with the message, no saddle is
+    recorded, and the solve stops with the converged steps."""
+    from skfem_rod import solver
+    real = solver.LoadStepper.lowest_mode
+
+    def always_unstable(self, r, R, lam):
+        value, mode, _ = real(self, r, R, lam)
+        return -abs(value) - 1.0, mode, 1
+
+    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
+                                              GJ=0.8), 4)
+    rod.clamp("start")
+    rod.add_force("end", [0.0, 1.0, 0.0])
+    monkeypatch.setattr(solver.LoadStepper, "lowest_mode", always_unstable)
+    res = rod.solve(1, snap="relax", stability=True, min_step=0.2)
+    assert not res.converged
+    assert len(res.steps) == 1                    # step 0 only: no saddle kept
+    assert "unstable equilibrium" in res.message
+    assert f"after {solver.MAX_PUSHES} pushes" in res.message
+    pushes = [line for line in res.log if "relaxing along the unstable mode" in line]
+    assert len(pushes) % solver.MAX_PUSHES == 0 and pushes
