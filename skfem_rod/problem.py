@@ -436,11 +436,30 @@ class Problem:
 
     def free_tangent(self, r, R, lam):
         """Tangent on the free dofs at ``(r, R, lam)`` (CSC, constrained rows
-        and columns removed) and the relative residual there."""
-        ev = self.evaluate(r, R, lam)
+        and columns removed) and the relative residual there: what the
+        stability checks (:mod:`skfem_rod.stability`) read.
+
+        With friction on it is the tangent of the **frictionless** problem at
+        the same state and normal multipliers (the residual is the
+        frictional one).  The friction tangent is not symmetric (the Coulomb
+        bound follows ``f_N``), and its symmetrized part is no measure of
+        stability: in the frictional plectoneme cycle
+        (``demos/plectoneme_friction.py``, 16 elements) the looped states
+        had lowest eigenvalues -9 to -18 with it, where the frictionless
+        cycle's looped states have +1.5e-4, and every one of them was pushed
+        off as a saddle.  Without friction the test is sufficient: friction
+        only dissipates, so a state stable without it is stable with it."""
+        ev = self.evaluate(r, R, lam, tangent=not self.friction)
+        residual = self.residual_norm(ev) / self.force_scale(ev)
+        if self.friction:
+            self.friction = False
+            try:
+                ev = self.evaluate(r, R, lam)
+            finally:
+                self.friction = True
         idx = np.flatnonzero(self.free)
         Kf = ev.tangent[idx][:, idx].tocsc()
-        return Kf, self.residual_norm(ev) / self.force_scale(ev)
+        return Kf, residual
 
 
 #: a slave keeps its master element while the projection there is within

@@ -206,8 +206,11 @@ class LoadStepper:
         # off a saddle (snap="relax"): pushed along its unstable mode and
         # relaxed; a flow that comes back onto a saddle is pushed again, the
         # other way, then twice as far (MAX_PUSHES in all), and the step
-        # fails rather than record the saddle.  (snap="cut" records it, with
-        # its eigenvalue: stability=True is then a diagnostic)
+        # fails rather than record the saddle.  With friction the test is
+        # the frictionless tangent's (Problem.free_tangent), sufficient but
+        # not necessary (friction may hold what the frictionless rod would
+        # not): the state is kept, with its eigenvalue.  (snap="cut" records
+        # a saddle with its eigenvalue: stability=True is then a diagnostic)
         pushes = 0
         while negative and relax and pushes < MAX_PUSHES:
             log.append(f"step to lam={lam_new:.6g}: unstable equilibrium (lowest eigenvalue "
@@ -221,7 +224,7 @@ class LoadStepper:
                 break
             rep.relaxed = True
             low, mode, negative = self.lowest_mode(r1, R1, lam_new)
-        if rep.converged and negative and pushes:
+        if rep.converged and negative and pushes and not p.friction:
             rep.converged = False
             rep.reason = (f"an unstable equilibrium (lowest eigenvalue {low:.3e}) after "
                           f"{pushes} pushes off saddles along their unstable modes")
