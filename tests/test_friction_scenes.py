@@ -128,6 +128,12 @@ def test_plectoneme_cycle_with_friction(plectoneme_cycle):
     assert md[k_dn] < 0.5 * mu[k_up]
     # back at zero turns: the straight rod again, no torque
     assert abs(rec[-1]["torque"]) < 1e-8 and rec[-1]["contacts"] == 0
+    # the stability checks read the frictionless tangent (Problem.free_tangent):
+    # the looped states' lowest eigenvalues are of the frictionless loop's
+    # size (+1.5e-4 there), not the -9 to -18 of the symmetrized friction
+    # tangent, which had every looped state pushed off as a saddle
+    low = [st.lowest_eigenvalue for st in res.steps if st.contact.force.size]
+    assert low and min(low) > -1e-3
 
 
 @pytest.mark.slow
