@@ -209,10 +209,12 @@ class LoadStepper:
         # fails rather than record the saddle.  With friction the test is
         # the frictionless tangent's (Problem.free_tangent), sufficient but
         # not necessary (friction may hold what the frictionless rod would
-        # not): the state is kept, with its eigenvalue.  (snap="cut" records
+        # not): one push, and the state is kept with its eigenvalue (in the
+        # frictional plectoneme four pushes flowed back to the same state,
+        # about 200 flow steps for nothing).  (snap="cut" records
         # a saddle with its eigenvalue: stability=True is then a diagnostic)
-        pushes = 0
-        while negative and relax and pushes < MAX_PUSHES:
+        pushes, limit = 0, (1 if p.friction else MAX_PUSHES)
+        while negative and relax and pushes < limit:
             log.append(f"step to lam={lam_new:.6g}: unstable equilibrium (lowest eigenvalue "
                        f"{low:.3e}); relaxing along the unstable mode")
             sign, size = (-1.0) ** pushes, p.push_size * 2.0 ** (pushes // 2)
