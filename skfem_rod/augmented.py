@@ -23,9 +23,8 @@ of the fixed penalty to the tolerances; only the path to it changes.
 """
 import numpy as np
 
-from .contact.friction import SLIP
+from .contact.friction import SLIP, misalignment
 from .contact.law import gap, uzawa_update
-from .rotations import cross
 
 #: the adaptive penalty raises the penalty at a point whose violation did
 #: not drop below this fraction of the last one (Bertsekas' 0.25)
@@ -306,13 +305,11 @@ def coulomb_misfit(problem, out):
     worst = 0.0
     for gamma, mu, f, g, state in ((c.gamma_T, p.mu_T, out.force_T, out.slip_T, out.state_T),
                                    (c.gamma_R, p.mu_R, out.force_R, out.slip_R, out.state_R)):
-        slip = state == SLIP
-        if gamma > 0 and slip.any():
-            f, g, bound = f[slip], g[slip], gamma * out.fN[slip]
-            gn = np.linalg.norm(g, axis=1)
-            big = (gn > c.friction_tolerance * mu * bound) & (bound > 0)
-            across = np.linalg.norm(cross(f[big], g[big]), axis=1) / gn[big]
-            worst = max(worst, float((across / bound[big]).max(initial=0.0)))
+        if gamma > 0:
+            big = (state == SLIP) & (np.linalg.norm(g, axis=1)
+                                     > c.friction_tolerance * mu * gamma * out.fN)
+            worst = max(worst, float(misalignment(f[big], g[big], gamma, out.fN[big])
+                                     .max(initial=0.0)))
     return worst
 
 

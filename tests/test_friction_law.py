@@ -10,8 +10,8 @@ from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from skfem_rod.contact.friction import (OPEN, SLIP, STICK, FrictionState, coulomb_violation,
-                                        dissipation, friction_force, project_ball,
-                                        uzawa_update)
+                                        dissipation, friction_force, misalignment,
+                                        project_ball, uzawa_update)
 
 HYP = settings(derandomize=True, deadline=None, max_examples=300)
 vec = arrays(np.float64, 3, elements=st.floats(-1e3, 1e3, allow_nan=False))
@@ -372,3 +372,28 @@ def test_block_pulled_by_spring_converges_to_coulomb(law):
     excess, gap = coulomb_violation(res.force, g, gamma, fN)
     assert excess.max() <= 1e-12 * gamma * fN.max()
     assert np.abs(gap).max() <= 1e-9 * (gamma * fN * ng).max()
+
+
+def test_misalignment_is_the_sine_of_the_force_to_the_slip():
+    """``misalignment(f, g, gamma, fN)``: for a force on the cone
+    (``|f| = gamma f_N``) at an angle ``theta`` to the slip, ``sin theta``,
+    whatever the slip's length; zero along the slip, where the slip or the
+    bound is zero; a force inside the cone counts by its share of the bound."""
+    rng = np.random.default_rng(3)
+    m = 50
+    g = rng.normal(size=(m, 3)) * rng.uniform(1e-6, 1e3, size=(m, 1))
+    e = g / np.linalg.norm(g, axis=1)[:, None]
+    q = rng.normal(size=(m, 3))
+    q -= np.sum(q * e, axis=1)[:, None] * e
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    theta = rng.uniform(0.0, np.pi, size=m)
+    gamma, fN = 0.3, rng.uniform(0.1, 10.0, size=m)
+    f = (gamma * fN)[:, None] * (np.cos(theta)[:, None] * e + np.sin(theta)[:, None] * q)
+    assert np.allclose(misalignment(f, g, gamma, fN), np.sin(theta), rtol=0, atol=1e-12)
+    assert np.allclose(misalignment(0.5 * f, g, gamma, fN), 0.5 * np.sin(theta), atol=1e-12)
+    along = (gamma * fN)[:, None] * e
+    assert np.abs(misalignment(along, g, gamma, fN)).max() < 1e-12
+    assert np.all(misalignment(f, np.zeros_like(g), gamma, fN) == 0)
+    assert np.all(misalignment(f, g, gamma, np.zeros(m)) == 0)
+    with pytest.raises(ValueError, match="shape"):
+        misalignment(f[:, :2], g, gamma, fN)

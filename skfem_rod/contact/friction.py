@@ -32,7 +32,9 @@ Map to the paper
 * :func:`uzawa_update`: the multiplier iteration of [8] behind eq. 4.2,
   ``lambda <- f``, i.e. ``lambda <- P_B(gamma f_N)[lambda + g / mu]``.
 * :func:`dissipation`: ``f . g`` (the power, or the work of a step, of
-  friction); :func:`coulomb_violation` checks eq. 3.10 after a step.
+  friction); :func:`coulomb_violation` checks eq. 3.10 after a step;
+  :func:`misalignment` is the force's sine to its slip, relative to the
+  bound (the Uzawa loop's Coulomb test).
 
 Slips are increments, not rates
 -------------------------------
@@ -108,6 +110,8 @@ from enum import IntEnum
 from typing import NamedTuple
 
 import numpy as np
+
+from ..rotations import cross
 
 
 class FrictionState(IntEnum):
@@ -260,3 +264,20 @@ def coulomb_violation(f, g, gamma, fN):
     excess = np.maximum(np.linalg.norm(f, axis=-1) - bound, 0.0)
     gap = bound * np.linalg.norm(g, axis=-1) - dissipation(f, g)
     return excess, gap
+
+
+def misalignment(f, g, gamma, fN):
+    r"""Per point, the component of the friction force ``f`` across the slip
+    ``g``, relative to the bound ``gamma f_N``: ``|f x g| / (|g| gamma f_N)``,
+    the sine of the angle between force and slip where ``|f| = gamma f_N``
+    (a slipping point, eq. 3.10).  Zero where ``g = 0`` or the bound is zero
+    (no direction to follow).  The Uzawa loop stops only when it is below
+    ``friction_tolerance`` at the points that slip
+    (:func:`skfem_rod.augmented.coulomb_misfit`)."""
+    f, g = _vectors(f, g)
+    bound = np.asarray(gamma, float) * np.asarray(fN, float)
+    gn = np.linalg.norm(g, axis=-1)
+    across = np.linalg.norm(cross(f, g), axis=-1)
+    ok = (gn > 0) & (bound > 0)
+    return np.divide(across, gn * bound, out=np.zeros(np.broadcast(across, bound).shape),
+                     where=ok)
