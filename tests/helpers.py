@@ -1,20 +1,31 @@
-"""Shared test helpers: import a demo script as a module, and check
-Coulomb's law on a solved result."""
+"""Shared test helpers: import a demo or benchmark script as a module,
+check Coulomb's law on a solved result, spy on reports, find 2-cycles."""
 import importlib.util
 import pathlib
 
 import numpy as np
 
-DEMOS = pathlib.Path(__file__).resolve().parents[1] / "demos"
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DEMOS = ROOT / "demos"
+
+
+def _load(name, path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def load_demo(name):
     """``demos/<name>.py`` imported as a module (demos are scripts, not a
     package)."""
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return _load(name, DEMOS / f"{name}.py")
+
+
+def load_bench(name):
+    """``benchmarks/<name>.py`` imported as a module: tests run a benchmark's
+    own case (its rod, load path and measures) rather than a copy of it."""
+    return _load(name, ROOT / "benchmarks" / f"{name}.py")
 
 
 def coulomb_checks(result, gamma_T, gamma_R):

@@ -18,7 +18,6 @@ one Newton, one augmented-Lagrangian loop used by every loop.
   solve and keeps its multipliers.
 """
 import ast
-import importlib.util
 import pathlib
 
 import numpy as np
@@ -405,15 +404,6 @@ def test_crossing_strands_never_converge_through_each_other(crossing):
         assert res.steps[-1].load_factor > 0.7
 
 
-def _bench_figure_eight():
-    spec = importlib.util.spec_from_file_location(
-        "bench_figure_eight",
-        pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "bench_figure_eight.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.mark.slow
 def test_pressed_figure_eight_rolls_off_onto_stable_states_to_full_load():
     """The figure-eight above (benchmarks/bench_figure_eight.py), pressed by
@@ -426,7 +416,8 @@ def test_pressed_figure_eight_rolls_off_onto_stable_states_to_full_load():
     below the pushed-up one, and every recorded state to load factor 1 is
     stable, an equilibrium polished by Newton, with the strands touching
     and apart by their true distance to the contact tolerance."""
-    bench = _bench_figure_eight()
+    from helpers import load_bench
+    bench = load_bench("bench_figure_eight")
     eps = bench.EPS
     # the pressed state of plain load stepping: stable at 0.1, a saddle at 0.2
     _, res, rows, _, _ = bench.run(2, path=[0.0, 0.2], snap="cut")

@@ -13,18 +13,15 @@ the ends of the documented ranges:
 * outside: 20 turns on 16 elements (more twist per element than the
   element chart allows).
 """
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from helpers import load_bench
+
 pytestmark = pytest.mark.slow    # a scene or a long run (fast tier: -m "not slow")
 
-ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("stress", ROOT / "benchmarks" / "stress.py")
-stress = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(stress)
+stress = load_bench("stress")
 
 
 def run(case):

@@ -4,8 +4,6 @@ rod is twisted by 27 turns under a small end stretch (straight and stable),
 then its end is brought in by the slack with the end rotation held.  The
 equilibrium at the end is compared with the localizing helix of the
 infinite rod (:func:`skfem_rod.analytic.localized_writhing`)."""
-import importlib.util
-import pathlib
 
 import numpy as np
 import pytest
@@ -14,12 +12,10 @@ from scipy.optimize import minimize_scalar
 from skfem_rod.analytic import localized_writhing
 from skfem_rod.solver import RelaxedShortfall
 
+from helpers import load_bench
+
 # the case and its rigid path as the benchmark builds them
-_spec = importlib.util.spec_from_file_location(
-    "bench_writhing",
-    pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "bench_writhing.py")
-bw = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(bw)
+bw = load_bench("bench_writhing")
 L, B, C, SLACK, TURNS = bw.L, bw.B, bw.C, bw.SLACK, bw.TURNS
 
 
