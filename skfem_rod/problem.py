@@ -447,8 +447,10 @@ class Problem:
         (``demos/plectoneme_friction.py``, 16 elements) the looped states
         had lowest eigenvalues -9 to -18 with it, where the frictionless
         cycle's looped states have +1.5e-4, and every one of them was pushed
-        off as a saddle.  Without friction the test is sufficient: friction
-        only dissipates, so a state stable without it is stable with it."""
+        off as a saddle.  The frictionless test is sufficient, not
+        necessary: friction only dissipates, so a state stable without it is
+        stable with it, but it may hold one the frictionless rod would
+        leave (docs/stability.md)."""
         ev = self.evaluate(r, R, lam, tangent=not self.friction)
         residual = self.residual_norm(ev) / self.force_scale(ev)
         if self.friction:

@@ -204,15 +204,12 @@ class LoadStepper:
             return r1, R1, rep
         low, mode, negative = self.lowest_mode(r1, R1, lam_new)
         # off a saddle (snap="relax"): pushed along its unstable mode and
-        # relaxed; a flow that comes back onto a saddle is pushed again, the
-        # other way, then twice as far (MAX_PUSHES in all), and the step
-        # fails rather than record the saddle.  With friction the test is
-        # the frictionless tangent's (Problem.free_tangent), sufficient but
-        # not necessary (friction may hold what the frictionless rod would
-        # not): one push, and the state is kept with its eigenvalue (in the
-        # frictional plectoneme four pushes flowed back to the same state,
-        # about 200 flow steps for nothing).  (snap="cut" records
-        # a saddle with its eigenvalue: stability=True is then a diagnostic)
+        # relaxed, again (the other way, then twice as far) while the flow
+        # ends on a saddle; after MAX_PUSHES the step fails rather than
+        # record one.  With friction the test (Problem.free_tangent) is only
+        # sufficient: one push, then the state is kept with its eigenvalue
+        # (docs/stability.md).  snap="cut" records saddles with their
+        # eigenvalue: stability=True is then a diagnostic.
         pushes, limit = 0, (1 if p.friction else MAX_PUSHES)
         while negative and relax and pushes < limit:
             log.append(f"step to lam={lam_new:.6g}: unstable equilibrium (lowest eigenvalue "
