@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rotations import (cross, hat, expm, logm, tangent, tangent_inv,
+from .rotations import (coefficients, cross, hat, expm, logm, tangent, tangent_inv,
                         dtangent_matrix, dtangent_form, d2tangent_form)
 
 #: local index (scikit-fem dof order 0, 1, 1/3, 2/3) of the reference node
@@ -96,11 +96,18 @@ def interpolate(loc, N, dN):
 
 def strains(psi, dpsi, drho):
     """Material strains ``eps = (v, u)`` (``(..., 6)``) and ``Lambda``."""
+    eps, Lam, _ = _strains(psi, dpsi, drho, None)
+    return eps, Lam
+
+
+def _strains(psi, dpsi, drho, coef):
+    """:func:`strains` and ``T(psi)^T``, from the :func:`coefficients` of
+    ``psi`` when given."""
     Lam = expm(psi)
-    Tt = np.swapaxes(tangent(psi), -1, -2)
+    Tt = np.swapaxes(tangent(psi, coef), -1, -2)
     v = np.einsum("...ji,...j->...i", Lam, drho)
     u = np.einsum("...ij,...j->...i", Tt, dpsi)
-    return np.concatenate([v, u], axis=-1), Lam
+    return np.concatenate([v, u], axis=-1), Lam, Tt
 
 
 @dataclass
@@ -121,18 +128,19 @@ def point_state(psi, dpsi, drho, eps0, C, second=True):
     tangent ``A^T C A + G``, the energy ``W``.  ``C`` is the ``6 x 6``
     section stiffness (order ``v1, v2, v3, u1, u2, u3``).
     """
-    eps, Lam = strains(psi, dpsi, drho)
+    # T(psi) and its derivatives at -psi share these (they depend on |psi|)
+    coef = coefficients(psi, 2 if second else 1)
+    eps, Lam, Tt = _strains(psi, dpsi, drho, coef)
     de = eps - eps0
     S = de @ C.T
     W = 0.5 * np.einsum("...i,...i->...", de, S)
-    Tt = np.swapaxes(tangent(psi), -1, -2)
     v = eps[..., :3]
     shape = psi.shape[:-1]
     A = np.zeros(shape + (6, 9))
     A[..., :3, 0:3] = np.swapaxes(Lam, -1, -2)
     A[..., :3, 3:6] = hat(v) @ Tt
     # u = T(-psi) psi'  =>  du/dpsi a = -DT(-psi)[a] psi'
-    A[..., 3:, 3:6] = -dtangent_matrix(-psi, dpsi)
+    A[..., 3:, 3:6] = -dtangent_matrix(-psi, dpsi, coef)
     A[..., 3:, 6:9] = Tt
     G = None
     if second:
@@ -143,11 +151,11 @@ def point_state(psi, dpsi, drho, eps0, C, second=True):
         G[..., 0:3, 3:6] = G_rp
         G[..., 3:6, 0:3] = np.swapaxes(G_rp, -1, -2)
         G_pp = (np.swapaxes(Tt, -1, -2) @ hat(Nm) @ hat(v) @ Tt
-                - dtangent_form(-psi, cross(Nm, v)))
+                - dtangent_form(-psi, cross(Nm, v), coef))
         # M . d2u: (psi, psi) and (psi', psi)
-        G_pp = G_pp + d2tangent_form(-psi, Mm, dpsi)
+        G_pp = G_pp + d2tangent_form(-psi, Mm, dpsi, coef)
         G[..., 3:6, 3:6] = G_pp          # symmetric (checked in tests)
-        Q = -dtangent_form(-psi, Mm)          # rows psi', cols psi
+        Q = -dtangent_form(-psi, Mm, coef)    # rows psi', cols psi
         G[..., 6:9, 3:6] = Q
         G[..., 3:6, 6:9] = np.swapaxes(Q, -1, -2)
     return PointState(eps=eps, S=S, W=W, A=A, G=G, Lam=Lam)
@@ -186,6 +194,7 @@ def chart_curvature(loc, P, g):
     RrT = np.swapaxes(Rr, -1, -2)
     Gc = np.zeros((ne, 24, 24))
     wa = slice(6 * a + 3, 6 * a + 6)
+    Tinv, coef = tangent_inv(loc.psi), coefficients(loc.psi, 1)      # all nodes at once
     for I in range(4):
         g_rho = g[:, 6 * I:6 * I + 3]
         G_sp = np.einsum("eij,ej->ei", Rr, g_rho)
@@ -198,9 +207,9 @@ def chart_curvature(loc, P, g):
         if I == a:
             continue
         g_psi = g[:, 6 * I + 3:6 * I + 6]
-        h = np.einsum("eji,ej->ei", tangent_inv(loc.psi[:, I]), g_psi)
+        h = np.einsum("eji,ej->ei", Tinv[:, I], g_psi)
         H_sp = np.einsum("eij,ej->ei", Rr, h)
-        Q = dtangent_form(loc.psi[:, I], h)
+        Q = dtangent_form(loc.psi[:, I], h, [c[:, I] for c in coef])
         PI = P[:, I]
         M = -np.swapaxes(PI, -1, -2) @ Q @ PI
         wI = slice(6 * I + 3, 6 * I + 6)

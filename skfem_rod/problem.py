@@ -154,6 +154,9 @@ class Problem:
         self.timers = defaultdict(float)
         self.calls = defaultdict(int)
         self.viscous = None
+        #: what Problem.factor derives from the tangent's pattern (a band
+        #: ordering with contact, which couples distant stretches of the rod)
+        self.factor_pattern = FactorPattern(band=rod.contact is not None)
         #: dof basis of the supports (sparse orthogonal), None: spatial axes
         self.T = rod.dof_basis()
         self.contact = rod.contact
@@ -403,28 +406,19 @@ class Problem:
         """Factorize ``K`` on the free dofs (constrained rows and columns
         replaced by the identity, pattern unchanged); returns ``solve(rhs)``
         (zero on the constrained dofs).  ``fixed``: another mask of held
-        dofs (default: the supports')."""
-        K = K.tocsc(copy=True)
-        cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
-        rows = K.indices
+        dofs (default: the supports').  What depends on the sparsity
+        pattern alone (the held entries, the band ordering with contact)
+        is kept in :attr:`factor_pattern` while the pattern stays."""
         fixed = self.fixed if fixed is None else fixed
-        kill = fixed[rows] | fixed[cols]
-        K.data[kill] = 0.0
-        K.data[kill & (rows == cols)] = 1.0
         t0 = time.perf_counter()
-        if self.contact is None:
-            lu = spla.splu(K)
+        A, p = self.factor_pattern.prepare(K.tocsc(), fixed)
+        if p is None:
+            lu = spla.splu(A)
 
             def solve(rhs):
                 return lu.solve(np.where(fixed, 0.0, rhs))
         else:
-            # contact couples distant stretches of the rod (turns of a coil,
-            # the plies of a plectoneme): a reverse Cuthill-McKee band
-            # ordering keeps the fill small where COLAMD does not (coil of
-            # 1000 elements in contact: 0.5 s against 3.2 s per factorization)
-            from scipy.sparse.csgraph import reverse_cuthill_mckee
-            p = reverse_cuthill_mckee(K.tocsr(), symmetric_mode=True)
-            lu = spla.splu(K[p][:, p].tocsc(), permc_spec="NATURAL")
+            lu = spla.splu(A, permc_spec="NATURAL")
 
             def solve(rhs):
                 x = np.empty_like(rhs)
@@ -494,6 +488,69 @@ def spin_cap(dy, largest):
     a predictor starts."""
     spin = np.abs(dy.reshape(-1, 6)[:, 3:]).max(initial=0.0)
     return min(1.0, largest / max(spin, 1e-300))
+
+
+class FactorPattern:
+    """What :meth:`Problem.factor` derives from a tangent's sparsity pattern
+    and the held dofs alone, kept while they stay (Newton iterations whose
+    contact element pairs do not change): the positions of the held rows and
+    columns (their entries are replaced by the identity) and, with ``band``,
+    the reverse Cuthill-McKee ordering and the map that permutes the values.
+
+    With contact the band ordering keeps the fill small where COLAMD does
+    not: contact couples distant stretches of the rod (the turns of a coil,
+    the plies of a plectoneme; coil of 1000 elements in contact: 0.5 s
+    against 3.2 s per factorization).  Recomputing the ordering and the
+    permuted pattern took 40 % of a factorization at 400 elements
+    (benchmarks/RESULTS_core.md)."""
+
+    def __init__(self, band):
+        self.band = band
+        self.indptr = self.indices = self.fixed = None
+
+    def _same(self, K, fixed):
+        return (self.indptr is not None and K.shape == self.shape
+                and np.array_equal(K.indptr, self.indptr)
+                and np.array_equal(K.indices, self.indices)
+                and np.array_equal(fixed, self.fixed))
+
+    def _derive(self, K, fixed):
+        self.shape, self.fixed = K.shape, fixed.copy()
+        self.indptr, self.indices = K.indptr.copy(), K.indices.copy()
+        cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
+        rows = K.indices
+        kill = fixed[rows] | fixed[cols]
+        self.zero = np.flatnonzero(kill)
+        self.one = np.flatnonzero(kill & (rows == cols))
+        self.p = None
+        if self.band:
+            from scipy.sparse.csgraph import reverse_cuthill_mckee
+            p = reverse_cuthill_mckee(K.tocsr(), symmetric_mode=True)
+            # the same permutation applied to the entries' positions
+            pos = sp.csc_matrix((np.arange(1, K.nnz + 1, dtype=float), K.indices, K.indptr),
+                                shape=K.shape)
+            Pp = pos[p][:, p].tocsc()
+            Pp.sort_indices()                     # what splu would do in place
+            if Pp.nnz != K.nnz:                   # not a plain permutation
+                raise RuntimeError("the band ordering lost entries of the tangent")
+            self.p, self.map = p, Pp.data.astype(np.int64) - 1
+            self.pindptr, self.pindices = Pp.indptr, Pp.indices
+
+    def prepare(self, K, fixed):
+        """``K`` (CSC) with the held rows and columns replaced by the
+        identity, band-ordered with ``band``; returns ``(matrix, p)``
+        (``p`` the ordering, None without ``band``)."""
+        if not self._same(K, fixed):
+            self._derive(K, fixed)
+        data = K.data.copy()
+        data[self.zero] = 0.0
+        data[self.one] = 1.0
+        # copies of the index arrays: splu may sort a matrix's indices in place
+        if self.p is None:
+            return sp.csc_matrix((data, self.indices.copy(), self.indptr.copy()),
+                                 shape=K.shape), None
+        return sp.csc_matrix((data[self.map], self.pindices.copy(), self.pindptr.copy()),
+                             shape=K.shape), self.p
 
 
 def start(problem, r, R, lam, prescribed):

@@ -221,9 +221,11 @@ def logm(R):
     return f[..., None] * v
 
 
-def tangent(psi):
-    """Tangent operator ``T(psi)`` of the exponential map (see module doc)."""
-    al, be = coefficients(psi)
+def tangent(psi, coef=None):
+    """Tangent operator ``T(psi)`` of the exponential map (see module doc).
+    ``coef``: :func:`coefficients` of ``psi`` (any order) if already at
+    hand (they depend on ``|psi|`` only: those of ``-psi`` serve too)."""
+    al, be = coefficients(psi) if coef is None else coef[:2]
     K = hat(psi)
     return np.eye(3) + al[..., None, None] * K + be[..., None, None] * (K @ K)
 
@@ -241,11 +243,12 @@ def tangent_inv(psi):
     return np.eye(3) - 0.5 * K + g[..., None, None] * (K @ K)
 
 
-def dtangent_matrix(psi, p):
+def dtangent_matrix(psi, p, coef=None):
     """Matrix ``J`` with ``DT(psi)[a] p = J a`` (directional derivative of
-    ``T`` in direction ``a``, applied to ``p``)."""
+    ``T`` in direction ``a``, applied to ``p``); ``coef`` as in
+    :func:`tangent` (order >= 1)."""
     psi, p = np.broadcast_arrays(np.asarray(psi, float), np.asarray(p, float))
-    al, be, ax, bx = coefficients(psi, 1)
+    al, be, ax, bx = coefficients(psi, 1) if coef is None else coef[:4]
     pxp = cross(psi, p)
     v = ax[..., None] * pxp + bx[..., None] * cross(psi, pxp)
     return (-al[..., None, None] * hat(p)
@@ -253,10 +256,11 @@ def dtangent_matrix(psi, p):
             + 2 * v[..., :, None] * psi[..., None, :])
 
 
-def dtangent_form(psi, h):
-    """Matrix ``Q`` with ``h . DT(psi)[c] d = d^T Q c`` (bilinear in d, c)."""
+def dtangent_form(psi, h, coef=None):
+    """Matrix ``Q`` with ``h . DT(psi)[c] d = d^T Q c`` (bilinear in d, c);
+    ``coef`` as in :func:`tangent` (order >= 1)."""
     psi, h = np.broadcast_arrays(np.asarray(psi, float), np.asarray(h, float))
-    al, be, ax, bx = coefficients(psi, 1)
+    al, be, ax, bx = coefficients(psi, 1) if coef is None else coef[:4]
     hp = np.einsum("...i,...i->...", h, psi)
     x = np.einsum("...i,...i->...", psi, psi)
     hxp = cross(h, psi)
@@ -268,11 +272,12 @@ def dtangent_form(psi, h):
             + 2 * v[..., :, None] * psi[..., None, :])
 
 
-def d2tangent_form(psi, m, p):
-    """Symmetric matrix ``Q`` with ``m . D^2T(psi)[a, b] p = a^T Q b``."""
+def d2tangent_form(psi, m, p, coef=None):
+    """Symmetric matrix ``Q`` with ``m . D^2T(psi)[a, b] p = a^T Q b``;
+    ``coef`` as in :func:`tangent` (order 2)."""
     psi, m, p = np.broadcast_arrays(np.asarray(psi, float),
                                     np.asarray(m, float), np.asarray(p, float))
-    al, be, ax, bx, axx, bxx = coefficients(psi, 2)
+    al, be, ax, bx, axx, bxx = coefficients(psi, 2) if coef is None else coef
     mp = np.einsum("...i,...i->...", m, p)
     psixp = cross(psi, p)
     pp = np.einsum("...i,...i->...", psi, p)

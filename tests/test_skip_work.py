@@ -21,6 +21,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 import pytest
 
 from skfem_rod import Rod, Section, geometry
@@ -208,6 +209,46 @@ def test_matrix_assembly_reuses_the_pattern_arrays():
     K = assembly_mod.internal_work(m, rod.r0, rod.R0, rod.eps0, rod.C).matrix
     assert np.array_equal(K.indices, m._indices) and np.array_equal(K.indptr, m._indptr)
     assert K.nnz == m._nnz
+
+
+@pytest.mark.parametrize("contact", [False, True])
+def test_factor_derives_the_pattern_work_once_per_pattern(monkeypatch, contact):
+    """``Problem.factor`` keeps what depends on the tangent's sparsity
+    pattern and the held dofs alone (held entries, the band ordering with
+    contact) while they stay, derives it again when either changes, and
+    solves exactly the reduced system every time (against a dense solve of
+    the free block, with patterns and masks alternating)."""
+    from skfem_rod import problem as problem_mod
+    rod = rollup_rod(6)
+    if contact:
+        rod.enable_contact(radius=0.005)
+    system = problem_mod.Problem(rod)
+    derived = []
+    orig = problem_mod.FactorPattern._derive
+    monkeypatch.setattr(problem_mod.FactorPattern, "_derive",
+                        lambda self, K, fixed: (derived.append(1), orig(self, K, fixed)))
+    ev = system.evaluate(rod.r0, rod.R0, 0.0)
+    n = rod.mesh.n_dofs
+    K1 = ev.tangent.tocsc()
+    # another pattern: the first and last free nodes coupled (as a new contact pair)
+    a, b = 6 * 1, n - 6
+    C = sp.coo_matrix(([1.0, 1.0, -1.0, -1.0], ([a, b, a, b], [a, b, b, a])), shape=(n, n))
+    K2 = (K1 + 1e3 * C).tocsc()
+    fixed2 = system.fixed.copy()
+    fixed2[6 * 2:6 * 2 + 3] = True
+    rng = np.random.default_rng(3)
+    calls = [(K1, None), (K1, None), (K2, None), (K2, None), (K1, fixed2), (K1, None)]
+    for K, fixed in calls:
+        held = system.fixed if fixed is None else fixed
+        rhs = rng.standard_normal(n)
+        x = system.factor(K, fixed)(rhs)
+        f = ~held
+        expect = np.linalg.solve(K.toarray()[np.ix_(f, f)], rhs[f])
+        np.testing.assert_allclose(x[f], expect, rtol=1e-9, atol=1e-12 * np.abs(expect).max())
+        assert not np.any(x[held])
+        K.data[:] = K.data * (1.0 + 1e-3 * rng.standard_normal(K.nnz))   # new values
+    # derived at the 1st, 3rd (pattern), 5th (mask) and 6th (mask back) calls only
+    assert len(derived) == 4
 
 
 @pytest.mark.parametrize("seed", [0, 1])
