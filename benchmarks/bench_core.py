@@ -105,12 +105,20 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--old", required=True, help="checkout of the code before the core")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--cases", nargs="+", default=None,
+                    help="per-iteration cases as name:elements (default: statics:100 "
+                         "statics:1000 contact:200 contact:1000 friction:200 friction:1000)")
+    ap.add_argument("--no-solves", action="store_true", help="skip the whole solves")
+    ap.add_argument("--title", default="Solver core: per-iteration cost and Newton "
+                                       "iterations, before and after")
     ap.add_argument("--out", default=None,
                     help="write the report to this file (default: print it; "
                          "benchmarks/RESULTS_core.md holds the issue-12 record)")
     a = ap.parse_args(argv)
     cases = [("statics", 100), ("statics", 1000), ("contact", 200), ("contact", 1000),
              ("friction", 200), ("friction", 1000)]
+    if a.cases:
+        cases = [(c.split(":")[0], int(c.split(":")[1])) for c in a.cases]
     rows = []
     for case, n in cases:
         t = {"new": [], "old": []}
@@ -121,17 +129,17 @@ def main(argv=None):
         rows.append(f"| {case} | {n} | {old * 1e3:.1f} | {new * 1e3:.1f} | {new / old:.2f} |")
         print(rows[-1], flush=True)
     solves = []
-    for case, n in (("rollup", 16), ("bend45", 8)):
+    for case, n in (() if a.no_solves else (("rollup", 16), ("bend45", 8))):
         res = {w: run(tree, case, n) for w, tree in (("old", Path(a.old)), ("new", ROOT))}
         solves.append(f"| {case} | {res['old']['steps']} | {res['old']['iterations']} | "
                       f"{res['old']['t']:.2f} | {res['new']['steps']} | "
                       f"{res['new']['iterations']} | {res['new']['t']:.2f} |")
         print(solves[-1], flush=True)
     text = "\n".join([
-        "# Solver core: per-iteration cost and Newton iterations, before and after",
+        f"# {a.title}",
         "",
-        f"Command: `python benchmarks/bench_core.py --old {a.old} "
-        f"--repeats {a.repeats}` (each figure a fresh subprocess; old and new interleaved "
+        f"Command: `python benchmarks/bench_core.py "
+        f"{' '.join(argv if argv is not None else sys.argv[1:])}` (each figure a fresh subprocess; old and new interleaved "
         "repeat by repeat on the shared 2-core machine; medians).",
         "",
         "## One Newton iteration (evaluation + factorization + solve), ms",

@@ -501,12 +501,14 @@ class FactorPattern:
     not: contact couples distant stretches of the rod (the turns of a coil,
     the plies of a plectoneme; coil of 1000 elements in contact: 0.5 s
     against 3.2 s per factorization).  Recomputing the ordering and the
-    permuted pattern took 40 % of a factorization at 400 elements
-    (benchmarks/RESULTS_core.md)."""
+    permuted pattern for every factorization cost more than the numerical
+    factorization itself at some sizes (benchmarks/RESULTS_evaluation.md)."""
 
     def __init__(self, band):
         self.band = band
         self.indptr = self.indices = self.fixed = None
+        #: how many times the pattern work was done (benchmarks)
+        self.derivations = 0
 
     def _same(self, K, fixed):
         return (self.indptr is not None and K.shape == self.shape
@@ -515,6 +517,7 @@ class FactorPattern:
                 and np.array_equal(fixed, self.fixed))
 
     def _derive(self, K, fixed):
+        self.derivations += 1
         self.shape, self.fixed = K.shape, fixed.copy()
         self.indptr, self.indices = K.indptr.copy(), K.indices.copy()
         cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
