@@ -17,6 +17,7 @@ perturbation of the reference, seeded).  Whole solves: the README roll-up
 import argparse
 import json
 import os
+import shlex
 import statistics
 import subprocess
 import sys
@@ -135,12 +136,13 @@ def main(argv=None):
                       f"{res['old']['t']:.2f} | {res['new']['steps']} | "
                       f"{res['new']['iterations']} | {res['new']['t']:.2f} |")
         print(solves[-1], flush=True)
-    text = "\n".join([
+    lines = [
         f"# {a.title}",
         "",
-        f"Command: `python benchmarks/bench_core.py "
-        f"{' '.join(argv if argv is not None else sys.argv[1:])}` (each figure a fresh subprocess; old and new interleaved "
-        "repeat by repeat on the shared 2-core machine; medians).",
+        "Command: `python benchmarks/bench_core.py "
+        + shlex.join(argv if argv is not None else sys.argv[1:])
+        + "` (each figure a fresh subprocess; old and new interleaved repeat by repeat "
+          "on the shared 2-core machine; medians).",
         "",
         "## One Newton iteration (evaluation + factorization + solve), ms",
         "",
@@ -150,18 +152,21 @@ def main(argv=None):
         "",
         "statics: helix with a follower tip force; contact: the plectoneme of "
         "bench_contact.py (multipliers 1e-3); friction: the same with gamma_T = 0.3.",
-        "",
-        "## Whole solves (4 load steps requested)",
-        "",
-        "| case | steps before | iterations per step before | s before | steps after | "
-        "iterations per step after | s after |",
-        "|---|---|---|---|---|---|---|",
-        *solves,
-        "",
-        "rollup: the README's (`Section.circle(E=1e7, nu=0.3, radius=0.01)`, 16 elements); "
-        "bend45: the 45-degree bend with a solid circle of slenderness L / radius = 1e4, "
-        "8 elements.",
-        ""])
+        ""]
+    if solves:
+        lines += [
+            "## Whole solves (4 load steps requested)",
+            "",
+            "| case | steps before | iterations per step before | s before | steps after | "
+            "iterations per step after | s after |",
+            "|---|---|---|---|---|---|---|",
+            *solves,
+            "",
+            "rollup: the README's (`Section.circle(E=1e7, nu=0.3, radius=0.01)`, 16 elements); "
+            "bend45: the 45-degree bend with a solid circle of slenderness L / radius = 1e4, "
+            "8 elements.",
+            ""]
+    text = "\n".join(lines)
     if a.out is None:
         print(text)
     else:
