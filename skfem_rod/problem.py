@@ -154,9 +154,10 @@ class Problem:
         self.timers = defaultdict(float)
         self.calls = defaultdict(int)
         self.viscous = None
-        #: what Problem.factor derives from the tangent's pattern (a band
-        #: ordering with contact, which couples distant stretches of the rod)
-        self.factor_pattern = FactorPattern(band=rod.contact is not None)
+        #: what Problem.factor derives from the tangent's pattern, one per
+        #: mask of held dofs (the supports', and the position correction's
+        #: with every spin held: Newton alternates them)
+        self.factor_patterns = {}
         #: dof basis of the supports (sparse orthogonal), None: spatial axes
         self.T = rod.dof_basis()
         self.contact = rod.contact
@@ -408,10 +409,17 @@ class Problem:
         (zero on the constrained dofs).  ``fixed``: another mask of held
         dofs (default: the supports').  What depends on the sparsity
         pattern alone (the held entries, the band ordering with contact)
-        is kept in :attr:`factor_pattern` while the pattern stays."""
+        is kept in :attr:`factor_patterns` (one :class:`FactorPattern` per
+        mask of held dofs) while the pattern stays."""
         fixed = self.fixed if fixed is None else fixed
         t0 = time.perf_counter()
-        A, p = self.factor_pattern.prepare(K.tocsc(), fixed)
+        key = fixed.tobytes()
+        pattern = self.factor_patterns.get(key)
+        if pattern is None:
+            if len(self.factor_patterns) >= 4:
+                self.factor_patterns.clear()
+            pattern = self.factor_patterns[key] = FactorPattern(band=self.contact is not None)
+        A, p = pattern.prepare(K.tocsc(), fixed)
         if p is None:
             lu = spla.splu(A)
 
