@@ -54,7 +54,6 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .contact.law import gap
 from .kinematics import ElementRotationError
@@ -197,10 +196,10 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     rhs_l = -cs.C[act] - cs.K_ly.tocsr()[act] @ remaining
     t0 = time.perf_counter()
     # the band ordering of Problem.factor (contact couples distant stretches
-    # of the rod); SuperLU's partial pivoting takes the zero diagonal of
-    # the active rows
-    p = reverse_cuthill_mckee(A.tocsr(), symmetric_mode=False)
-    lu = spla.splu(A[p][:, p].tocsc(), permc_spec="NATURAL")
+    # of the rod), kept while the pattern stays; SuperLU's partial pivoting
+    # takes the zero diagonal of the active rows
+    Ap, p = problem.bordered_pattern.prepare(A, np.zeros(A.shape[0], bool))
+    lu = spla.splu(Ap, permc_spec="NATURAL")
     problem.timers["factorization"] += time.perf_counter() - t0
     problem.calls["factor"] += 1
     x = np.empty(A.shape[0])

@@ -177,6 +177,9 @@ class Problem:
             self.slaves = slave_points(rod.mesh, self.contact.n_slave)
             #: the sparse patterns of the contact tangents, kept between evaluations
             self.contact_patterns = ContactPatterns()
+            #: the band ordering of the generalized Newton's bordered matrix
+            #: (skfem_rod.nonsmooth), kept while its pattern stays
+            self.bordered_pattern = FactorPattern(band=True, symmetric=False)
             #: the master element of each slave at the last evaluation (-1:
             #: none), kept by the next search within KEEP_MASTER of the
             #: contact tolerance (contact/search.py: kinks at nodes)
@@ -503,7 +506,8 @@ class FactorPattern:
     and the held dofs alone, kept while they stay (Newton iterations whose
     contact element pairs do not change): the positions of the held rows and
     columns (their entries are replaced by the identity) and, with ``band``,
-    the reverse Cuthill-McKee ordering and the map that permutes the values.
+    the reverse Cuthill-McKee ordering (``symmetric``: of the pattern taken
+    as symmetric) and the map that permutes the values.
 
     With contact the band ordering keeps the fill small where COLAMD does
     not: contact couples distant stretches of the rod (the turns of a coil,
@@ -512,8 +516,8 @@ class FactorPattern:
     permuted pattern for every factorization cost more than the numerical
     factorization itself at some sizes (benchmarks/RESULTS_evaluation.md)."""
 
-    def __init__(self, band):
-        self.band = band
+    def __init__(self, band, symmetric=True):
+        self.band, self.symmetric = band, symmetric
         self.indptr = self.indices = self.fixed = None
         #: how many times the pattern work was done (benchmarks)
         self.derivations = 0
@@ -536,7 +540,7 @@ class FactorPattern:
         self.p = None
         if self.band:
             from scipy.sparse.csgraph import reverse_cuthill_mckee
-            p = reverse_cuthill_mckee(K.tocsr(), symmetric_mode=True)
+            p = reverse_cuthill_mckee(K.tocsr(), symmetric_mode=self.symmetric)
             # the same permutation applied to the entries' positions
             pos = sp.csc_matrix((np.arange(1, K.nnz + 1, dtype=float), K.indices, K.indptr),
                                 shape=K.shape)
