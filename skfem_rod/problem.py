@@ -518,7 +518,12 @@ class FactorPattern:
 
     def __init__(self, band, symmetric=True):
         self.band, self.symmetric = band, symmetric
-        self.indptr = self.indices = self.fixed = None
+        #: the pattern and held dofs the rest was derived from
+        self.shape = self.indptr = self.indices = self.fixed = None
+        #: data positions of the held entries (zeroed) and of their diagonal (set to 1)
+        self.zero = self.one = None
+        #: the band ordering, the data map and the permuted pattern (band only)
+        self.p = self.map = self.pindptr = self.pindices = None
         #: how many times the pattern work was done (benchmarks)
         self.derivations = 0
 
@@ -546,8 +551,6 @@ class FactorPattern:
                                 shape=K.shape)
             Pp = pos[p][:, p].tocsc()
             Pp.sort_indices()                     # what splu would do in place
-            if Pp.nnz != K.nnz:                   # not a plain permutation
-                raise RuntimeError("the band ordering lost entries of the tangent")
             self.p, self.map = p, Pp.data.astype(np.int64) - 1
             self.pindptr, self.pindices = Pp.indptr, Pp.indices
 
@@ -555,6 +558,9 @@ class FactorPattern:
         """``K`` (CSC) with the held rows and columns replaced by the
         identity, band-ordered with ``band``; returns ``(matrix, p)``
         (``p`` the ordering, None without ``band``)."""
+        if not K.has_canonical_format:            # one entry per position
+            K = K.copy()
+            K.sum_duplicates()
         if not self._same(K, fixed):
             self._derive(K, fixed)
         data = K.data.copy()
