@@ -185,7 +185,7 @@ def record(result, k, eps):
 
 
 def solve(gamma_T=0.0, pull=0.2, n_elements=60, n_steps=10, eps=EPS, clearance=6.0,
-          tail=0.5, verbose=False, start=None, **contact):
+          tail=0.5, verbose=False, start=None, options=None, **contact):
     """Tighten (load factor 0 -> 1) and loosen (1 -> 0) in ``n_steps``
     steps each way (``2 n_steps`` in all, more if steps are cut), from the
     knot tied without friction (``start``, default :func:`tie`).
@@ -196,7 +196,8 @@ def solve(gamma_T=0.0, pull=0.2, n_elements=60, n_steps=10, eps=EPS, clearance=6
     motion, scaled), Newton updates are capped so that no iterate carries a
     strand through another (``clearance_cap``), and a step Newton does not
     finish in 12 iterations is relaxed by the gradient flow
-    (``snap="relax"``)."""
+    (``snap="relax"``).  ``options``: solver options that replace or add
+    to these (``Rod.solve`` keywords; benchmarks/bench_knot.py)."""
     if start is None:
         start = tie(n_elements, eps, clearance, tail, **contact)
     rod = build(gamma_T, pull, n_elements, eps, clearance, tail, **contact)
@@ -213,8 +214,10 @@ def solve(gamma_T=0.0, pull=0.2, n_elements=60, n_steps=10, eps=EPS, clearance=6
                   f"newton={w['newton']} uzawa={w['uzawa']}", flush=True)
 
     t0 = time.perf_counter()
-    result = rod.solve(n_steps=2 * n_steps, path=[0.0, 1.0, 0.0], callback=cb, snap="relax",
-                       max_iterations=12, predictor="secant", start=start)
+    opts = dict(snap="relax", max_iterations=12, predictor="secant")
+    opts.update(options or {})
+    result = rod.solve(n_steps=2 * n_steps, path=[0.0, 1.0, 0.0], callback=cb, start=start,
+                       **opts)
     wall = time.perf_counter() - t0
     return dict(rod=rod, result=result, rows=rows, wall_time_s=wall, gamma_T=gamma_T,
                 eps=eps, pull=pull)

@@ -1,0 +1,108 @@
+"""The knot's tighten-and-loosen cycle of demos/knot.py, as issue 13 measures
+it: under 60 s per run, no Uzawa or iteration limit hit, and, without
+friction, the tightening and loosening branches within 1e-3 of the force.
+
+Ties the knot once (``knot.tie``, 60 elements by default), then runs the
+cycle of ``knot.solve`` from it (the end pulled by 0.2 in ``--steps`` steps
+and brought back in as many) with the demo's solver options, replaced or
+extended by ``--option name=value`` (JSON values, repeatable).  Reports the
+wall time of the tying and of the cycle, the gradient-flow steps, Newton
+iterations and Uzawa updates of the cycle, the steps whose Uzawa loop
+stopped at its limit and the steps that end on the gradient flow's state
+(``RelaxedShortfall``), the largest up/down mismatch of the force over the
+pairs of steps at the same load factor (the tied state excluded), relative
+to the largest force, and every force of the cycle.
+
+    python benchmarks/bench_knot.py [--gamma 0] [--elements 60] [--steps 10] \\
+        [--option position_correction=false ...] [--results]
+
+``--results`` appends the report to benchmarks/RESULTS_knot.md.
+"""
+import argparse
+import datetime
+import json
+import shlex
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+from bench_statics import machine_info  # noqa: E402
+from helpers import load_demo  # noqa: E402
+
+knot = load_demo("knot")
+
+
+def run(gamma=0.0, elements=60, steps=10, pull=0.2, options=None):
+    """Tie, then cycle; returns the figures of the module doc."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # shortfalls are counted below
+        t0 = time.perf_counter()
+        tied = knot.tie(elements)
+        t_tie = time.perf_counter() - t0
+        sol = knot.solve(gamma, pull, elements, steps, start=tied, options=options)
+    res, rows = sol["result"], sol["rows"]
+    F = np.array([w["force"] for w in rows])
+    pairs = [(i, j) for i, j in knot.same_load_pairs(rows) if rows[i]["load_factor"] > 0]
+    mismatch = max((abs(F[i] - F[j]) for i, j in pairs), default=np.nan) / np.abs(F).max()
+    steps_ = res.steps
+    return dict(gamma=gamma, elements=elements, steps=steps, options=options or {},
+                converged=bool(res.converged), message=res.message,
+                tie_s=t_tie, cycle_s=sol["wall_time_s"],
+                flow_steps=int(sum(st.flow_steps for st in steps_)),
+                newton=int(sum(st.iterations for st in steps_)),
+                uzawa=int(sum(st.contact.uzawa for st in steps_ if st.contact is not None)),
+                uzawa_limit=int(sum(not st.contact.uzawa_converged for st in steps_
+                                    if st.contact is not None)),
+                relaxed_shortfall=int(sum(st.relaxed_residual is not None for st in steps_)),
+                mismatch=float(mismatch), forces=[round(float(f), 4) for f in F])
+
+
+def report(out, argv):
+    cmd = "python benchmarks/bench_knot.py " + shlex.join(argv)
+    return "\n".join([
+        f"\n## {datetime.date.today()} `{cmd}`\n",
+        f"{machine_info()}\n",
+        f"{out['message']}; tying {out['tie_s']:.1f} s, cycle {out['cycle_s']:.1f} s; "
+        f"{out['flow_steps']} gradient-flow steps, {out['newton']} Newton iterations, "
+        f"{out['uzawa']} Uzawa updates, {out['uzawa_limit']} steps at the Uzawa limit, "
+        f"{out['relaxed_shortfall']} steps on the flow's state; up/down mismatch "
+        f"{100 * out['mismatch']:.2f} % of the largest force\n",
+        "forces: " + ", ".join(f"{f:.4f}" for f in out["forces"]) + "\n"])
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--gamma", type=float, default=0.0, help="tangential friction gamma_T")
+    ap.add_argument("--elements", type=int, default=60)
+    ap.add_argument("--steps", type=int, default=10, help="steps each way")
+    ap.add_argument("--option", action="append", default=[],
+                    help="solver option name=value (JSON value), repeatable")
+    ap.add_argument("--results", action="store_true",
+                    help="append to benchmarks/RESULTS_knot.md")
+    a = ap.parse_args(argv)
+    options = {}
+    for kv in a.option:
+        k, _, v = kv.partition("=")
+        options[k] = json.loads(v)
+    out = run(a.gamma, a.elements, a.steps, options=options)
+    print(json.dumps(out, indent=1, default=str))
+    if a.results:
+        path = HERE / "RESULTS_knot.md"
+        head = "" if path.exists() else (
+            "# The knot's tighten-and-loosen cycle (issue 13)\n\n"
+            "Scene, options and columns: `benchmarks/bench_knot.py` docstring; "
+            "discussion: docs/knot.md.  One run per entry; wall times on the shared "
+            "2-core machine.\n")
+        with open(path, "a") as f:
+            f.write(head + report(out, argv))
+
+
+if __name__ == "__main__":
+    main()
