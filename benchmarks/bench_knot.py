@@ -8,7 +8,7 @@ and brought back in as many) with the demo's solver options, replaced or
 extended by ``--option name=value`` (JSON values, repeatable).  Reports the
 wall time of the tying and of the cycle, the gradient-flow steps, Newton
 iterations and Uzawa updates of the cycle, the steps whose Uzawa loop
-stopped at its limit and the steps that end on the gradient flow's state
+stopped at its limit (step, updates, penetration) and the number of steps that end on the gradient flow's state
 (``RelaxedShortfall``), the largest up/down mismatch of the force over the
 pairs of steps at the same load factor (the tied state excluded), relative
 to the largest force, and every force of the cycle.
@@ -57,8 +57,9 @@ def run(gamma=0.0, elements=60, steps=10, pull=0.2, options=None):
                 flow_steps=int(sum(st.flow_steps for st in steps_)),
                 newton=int(sum(st.iterations for st in steps_)),
                 uzawa=int(sum(st.contact.uzawa for st in steps_ if st.contact is not None)),
-                uzawa_limit=int(sum(not st.contact.uzawa_converged for st in steps_
-                                    if st.contact is not None)),
+                uzawa_limit=[(k, st.contact.uzawa, float(st.contact.penetration))
+                             for k, st in enumerate(steps_)
+                             if st.contact is not None and not st.contact.uzawa_converged],
                 relaxed_shortfall=int(sum(st.relaxed_residual is not None for st in steps_)),
                 mismatch=float(mismatch), forces=[round(float(f), 4) for f in F])
 
@@ -70,7 +71,8 @@ def report(out, argv):
         f"{machine_info()}\n",
         f"{out['message']}; tying {out['tie_s']:.1f} s, cycle {out['cycle_s']:.1f} s; "
         f"{out['flow_steps']} gradient-flow steps, {out['newton']} Newton iterations, "
-        f"{out['uzawa']} Uzawa updates, {out['uzawa_limit']} steps at the Uzawa limit, "
+        f"{out['uzawa']} Uzawa updates; steps stopped at the Uzawa limit (step, updates, "
+        f"penetration): {out['uzawa_limit'] or 'none'}; "
         f"{out['relaxed_shortfall']} steps on the flow's state; up/down mismatch "
         f"{100 * out['mismatch']:.2f} % of the largest force\n",
         "forces: " + ", ".join(f"{f:.4f}" for f in out["forces"]) + "\n"])
