@@ -32,7 +32,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
-from bench_statics import machine_info  # noqa: E402
+from bench_statics import add_option_arguments, machine_info, parse_options  # noqa: E402
 from helpers import load_demo  # noqa: E402
 
 knot = load_demo("knot")
@@ -84,15 +84,9 @@ def main(argv=None):
     ap.add_argument("--gamma", type=float, default=0.0, help="tangential friction gamma_T")
     ap.add_argument("--elements", type=int, default=60)
     ap.add_argument("--steps", type=int, default=10, help="steps each way")
-    ap.add_argument("--option", action="append", default=[],
-                    help="solver option name=value (JSON value), repeatable")
-    ap.add_argument("--results", action="store_true",
-                    help="append to benchmarks/RESULTS_knot.md")
+    add_option_arguments(ap, "RESULTS_knot.md")
     a = ap.parse_args(argv)
-    options = {}
-    for kv in a.option:
-        k, _, v = kv.partition("=")
-        options[k] = json.loads(v)
+    options = parse_options(a.option)
     out = run(a.gamma, a.elements, a.steps, options=options)
     print(json.dumps(out, indent=1, default=str))
     if a.results:

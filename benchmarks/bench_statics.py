@@ -32,6 +32,7 @@ import datetime
 import gc
 import importlib.metadata
 import io
+import json
 import os
 import platform
 import pstats
@@ -160,6 +161,24 @@ class Report:
 
 
 # ---------------------------------------------------------------------------
+def add_option_arguments(ap, results):
+    """The benchmarks' ``--option name=value`` (repeatable; read by
+    :func:`parse_options`) and ``--results`` (append to ``results``)."""
+    ap.add_argument("--option", action="append", default=[],
+                    help="solver option name=value (JSON value), repeatable")
+    ap.add_argument("--results", action="store_true", help=f"append to benchmarks/{results}")
+
+
+def parse_options(pairs):
+    """Solver options from ``name=value`` strings (JSON values), as the
+    benchmarks' repeatable ``--option`` gives them."""
+    options = {}
+    for kv in pairs:
+        k, _, v = kv.partition("=")
+        options[k] = json.loads(v)
+    return options
+
+
 def machine_info():
     cpu = "unknown"
     try:

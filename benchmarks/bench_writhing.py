@@ -60,7 +60,7 @@ from skfem_rod.analytic import localized_writhing
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from bench_statics import machine_info  # noqa: E402
+from bench_statics import add_option_arguments, machine_info, parse_options  # noqa: E402
 
 L, B, C, EA = 100.0, 1.345, 0.789, 1e5
 SLACK, TURNS = 3.0, 27.0
@@ -178,15 +178,9 @@ def main(argv=None):
                          "max_rotation_step pi/2)")
     ap.add_argument("--path", choices=("rigid", "proportional"), default="rigid")
     ap.add_argument("--imperfection", type=float, default=1e-3)
-    ap.add_argument("--option", action="append", default=[],
-                    help="solver option name=value (JSON value), repeatable")
-    ap.add_argument("--results", action="store_true",
-                    help="append to benchmarks/RESULTS_writhing.md")
+    add_option_arguments(ap, "RESULTS_writhing.md")
     a = ap.parse_args(argv)
-    options = {}
-    for kv in a.option:
-        k, _, v = kv.partition("=")
-        options[k] = json.loads(v)
+    options = parse_options(a.option)
     res, out = run(a.elements, a.steps, a.imperfection, options, a.path)
     print(json.dumps({k: v for k, v in out.items()}, indent=1, default=str))
     if a.results:
