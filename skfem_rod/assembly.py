@@ -73,14 +73,15 @@ def internal_work(mesh, r, R, eps0, C, tangent=True, Z=None):
     # gradient in local dofs: g = sum_q dx Z^T A^T S
     AtS = (dx * (np.swapaxes(ps.A, -1, -2) @ ps.S[..., None])).reshape(ne, nq * 9, 1)
     g = (np.swapaxes(Zs, 1, 2) @ AtS)[..., 0]                  # (ne, 24)
-    B, P = chart(loc)
+    ch = chart(loc)
+    B = ch.B
     fe = (np.swapaxes(B, 1, 2) @ g[..., None])[..., 0]
     energy = float(np.sum(mesh.dx * ps.W))
     K = None
     if tangent:
         K9 = np.swapaxes(ps.A, -1, -2) @ (C @ ps.A) + ps.G      # (ne, nq, 9, 9)
         H = np.swapaxes(Zs, 1, 2) @ (dx * (K9 @ Z)).reshape(ne, nq * 9, 24)
-        Ke = np.swapaxes(B, 1, 2) @ H @ B + chart_curvature(loc, P, g)
+        Ke = np.swapaxes(B, 1, 2) @ H @ B + chart_curvature(loc, ch, g)
         K = mesh.assemble_matrix(Ke)
     return InternalWork(force=mesh.assemble_vector(fe), matrix=K, energy=energy,
                         max_local_rotation=float(np.linalg.norm(loc.psi, axis=-1).max()))

@@ -76,7 +76,8 @@ def assemble_with_forms(mesh, r, R, eps0, C):
     H = asm(internal_stiffness, dg, K9=K9).toarray()
     idx = dg.element_dofs.T
     He = H[idx[:, :, None], idx[:, None, :]]                              # (ne, 24, 24)
-    B, P = chart(loc)
+    ch = chart(loc)
+    B = ch.B
     fe = np.einsum("eji,ej->ei", B, g)
-    Ke = np.swapaxes(B, 1, 2) @ He @ B + chart_curvature(loc, P, g)
+    Ke = np.swapaxes(B, 1, 2) @ He @ B + chart_curvature(loc, ch, g)
     return mesh.assemble_vector(fe), mesh.assemble_matrix(Ke)

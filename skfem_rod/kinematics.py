@@ -37,6 +37,7 @@ gradient ``A^T S`` and Hessian ``A^T C A + G`` with respect to ``z``.
 Spatial resultants are ``n = R N``, ``m = R M`` (the paper's eq. 3.5).
 """
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -161,18 +162,28 @@ def point_state(psi, dpsi, drho, eps0, C, second=True):
     return PointState(eps=eps, S=S, W=W, A=A, G=G, Lam=Lam)
 
 
+class Chart(NamedTuple):
+    """The element chart of :func:`chart`: ``B`` ``(ne, 24, 24)``, the
+    matrices ``P_I = T(psi_I)^{-1} R_r^T`` and ``T(psi_I)^{-1}`` itself
+    ``(ne, 4, 3, 3)`` (:func:`chart_curvature` reads both)."""
+    B: np.ndarray
+    P: np.ndarray
+    Tinv: np.ndarray
+
+
 def chart(loc):
     """Map from element dofs ``y = (r_I, w_I)`` (spatial positions and
     spins) to local dofs ``x = (rho_I, psi_I)``: ``delta x = B delta y``.
 
-    Returns ``B`` of shape ``(ne, 24, 24)`` in the local dof order
-    ``6 I + c`` (``c`` = 0..2 position / local position, 3..5 spin / psi)
-    and the matrices ``P_I = T(psi_I)^{-1} R_r^T`` ``(ne, 4, 3, 3)``.
+    Returns a :class:`Chart`: ``B`` in the local dof order ``6 I + c``
+    (``c`` = 0..2 position / local position, 3..5 spin / psi), ``P`` and
+    ``Tinv``.
     """
     ne = loc.Rr.shape[0]
     a = REF_NODE
     RrT = np.swapaxes(loc.Rr, -1, -2)
-    P = tangent_inv(loc.psi) @ RrT[:, None]
+    Tinv = tangent_inv(loc.psi)
+    P = Tinv @ RrT[:, None]
     B = np.zeros((ne, 24, 24))
     for I in range(4):                       # 4 nodes: a fixed, tiny loop
         B[:, 6 * I:6 * I + 3, 6 * I:6 * I + 3] = RrT
@@ -180,13 +191,14 @@ def chart(loc):
         if I != a:
             B[:, 6 * I + 3:6 * I + 6, 6 * I + 3:6 * I + 6] = P[:, I]
             B[:, 6 * I + 3:6 * I + 6, 6 * a + 3:6 * a + 6] = -P[:, I]
-    return B, P
+    return Chart(B, P, Tinv)
 
 
-def chart_curvature(loc, P, g):
+def chart_curvature(loc, ch, g):
     """Second-order term of the chart: ``G[i, j] = g . d(B_row)/dy_j`` for the
     multiplicative update, with ``g`` the element gradient in local dofs
-    ``(ne, 24)``.  Returns ``(ne, 24, 24)`` (rows: test, cols: increment).
+    ``(ne, 24)`` and ``ch`` the :class:`Chart` of ``loc``.  Returns
+    ``(ne, 24, 24)`` (rows: test, cols: increment).
     """
     ne = loc.Rr.shape[0]
     a = REF_NODE
@@ -194,7 +206,8 @@ def chart_curvature(loc, P, g):
     RrT = np.swapaxes(Rr, -1, -2)
     Gc = np.zeros((ne, 24, 24))
     wa = slice(6 * a + 3, 6 * a + 6)
-    Tinv, coef = tangent_inv(loc.psi), coefficients(loc.psi, 1)      # all nodes at once
+    P, Tinv = ch.P, ch.Tinv
+    coef = coefficients(loc.psi, 1)                                 # all nodes at once
     for I in range(4):
         g_rho = g[:, 6 * I:6 * I + 3]
         G_sp = np.einsum("eij,ej->ei", Rr, g_rho)
