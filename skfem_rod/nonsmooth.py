@@ -198,7 +198,7 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     # the band ordering of Problem.factor (contact couples distant stretches
     # of the rod), kept while the pattern stays; SuperLU's partial pivoting
     # takes the zero diagonal of the active rows
-    Ap, p = problem.bordered_pattern.prepare(A, np.zeros(A.shape[0], bool))
+    Ap, p = problem.bordered_pattern.prepare(A)
     lu = spla.splu(Ap, permc_spec="NATURAL")
     problem.timers["factorization"] += time.perf_counter() - t0
     problem.calls["factor"] += 1

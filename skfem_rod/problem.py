@@ -421,8 +421,9 @@ class Problem:
         if pattern is None:
             if len(self.factor_patterns) >= 4:
                 self.factor_patterns.clear()
-            pattern = self.factor_patterns[key] = FactorPattern(band=self.contact is not None)
-        A, p = pattern.prepare(K.tocsc(), fixed)
+            pattern = self.factor_patterns[key] = FactorPattern(
+                fixed.copy(), band=self.contact is not None)
+        A, p = pattern.prepare(K.tocsc())
         if p is None:
             lu = spla.splu(A)
 
@@ -503,11 +504,12 @@ def spin_cap(dy, largest):
 
 class FactorPattern:
     """What :meth:`Problem.factor` derives from a tangent's sparsity pattern
-    and the held dofs alone, kept while they stay (Newton iterations whose
-    contact element pairs do not change): the positions of the held rows and
-    columns (their entries are replaced by the identity) and, with ``band``,
-    the reverse Cuthill-McKee ordering (``symmetric``: of the pattern taken
-    as symmetric) and the map that permutes the values.
+    alone, for one mask ``fixed`` of held dofs (None: none held), kept while
+    the pattern stays (Newton iterations whose contact element pairs do not
+    change): the positions of the held rows and columns (their entries are
+    replaced by the identity) and, with ``band``, the reverse Cuthill-McKee
+    ordering (``symmetric``: of the pattern taken as symmetric) and the map
+    that permutes the values.
 
     With contact the band ordering keeps the fill small where COLAMD does
     not: contact couples distant stretches of the rod (the turns of a coil,
@@ -516,10 +518,10 @@ class FactorPattern:
     permuted pattern for every factorization cost more than the numerical
     factorization itself at some sizes (benchmarks/RESULTS_evaluation.md)."""
 
-    def __init__(self, band, symmetric=True):
-        self.band, self.symmetric = band, symmetric
-        #: the pattern and held dofs the rest was derived from
-        self.shape = self.indptr = self.indices = self.fixed = None
+    def __init__(self, fixed=None, band=False, symmetric=True):
+        self.fixed, self.band, self.symmetric = fixed, band, symmetric
+        #: the pattern the rest was derived from
+        self.shape = self.indptr = self.indices = None
         #: data positions of the held entries (zeroed) and of their diagonal (set to 1)
         self.zero = self.one = None
         #: the band ordering, the data map and the permuted pattern (band only)
@@ -527,21 +529,23 @@ class FactorPattern:
         #: how many times the pattern work was done (benchmarks)
         self.derivations = 0
 
-    def _same(self, K, fixed):
+    def _same(self, K):
         return (self.indptr is not None and K.shape == self.shape
                 and np.array_equal(K.indptr, self.indptr)
-                and np.array_equal(K.indices, self.indices)
-                and np.array_equal(fixed, self.fixed))
+                and np.array_equal(K.indices, self.indices))
 
-    def _derive(self, K, fixed):
+    def _derive(self, K):
         self.derivations += 1
-        self.shape, self.fixed = K.shape, fixed.copy()
+        self.shape = K.shape
         self.indptr, self.indices = K.indptr.copy(), K.indices.copy()
-        cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
-        rows = K.indices
-        kill = fixed[rows] | fixed[cols]
-        self.zero = np.flatnonzero(kill)
-        self.one = np.flatnonzero(kill & (rows == cols))
+        if self.fixed is None:
+            self.zero = self.one = np.zeros(0, dtype=np.intp)
+        else:
+            cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
+            rows = K.indices
+            kill = self.fixed[rows] | self.fixed[cols]
+            self.zero = np.flatnonzero(kill)
+            self.one = np.flatnonzero(kill & (rows == cols))
         self.p = None
         if self.band:
             from scipy.sparse.csgraph import reverse_cuthill_mckee
@@ -554,15 +558,15 @@ class FactorPattern:
             self.p, self.map = p, Pp.data.astype(np.int64) - 1
             self.pindptr, self.pindices = Pp.indptr, Pp.indices
 
-    def prepare(self, K, fixed):
+    def prepare(self, K):
         """``K`` (CSC) with the held rows and columns replaced by the
         identity, band-ordered with ``band``; returns ``(matrix, p)``
         (``p`` the ordering, None without ``band``)."""
         if not K.has_canonical_format:            # one entry per position
             K = K.copy()
             K.sum_duplicates()
-        if not self._same(K, fixed):
-            self._derive(K, fixed)
+        if not self._same(K):
+            self._derive(K)
         data = K.data.copy()
         data[self.zero] = 0.0
         data[self.one] = 1.0
