@@ -93,3 +93,42 @@ def test_penalty_factors_saved_and_restored_with_the_multipliers(friction):
     assert np.all(problem.multipliers.normal == 0.0)
     assert np.all(problem.multipliers.penalty_scale == 1.0)
     assert problem.multipliers.friction_scale == 1.0
+
+
+def test_penalty_grows_where_two_points_take_turns_to_carry_a_contact():
+    """An Uzawa 2-cycle: two slave points take turns to carry a contact,
+    each out of contact every other pass with the same penetration when in.
+    Each point's violation is compared with the one of the last pass in
+    which it was in contact, so both penalties grow by ``penalty_growth``
+    on their second turn; a point whose violation fell by more than
+    PENALTY_DROP, and one within the tolerance, keep theirs."""
+    from types import SimpleNamespace
+
+    from skfem_rod.augmented import PENALTY_DROP, adapt_penalty
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 8)
+    rod.enable_contact()
+    problem = Problem(rod)
+    c, m = problem.contact, problem.multipliers
+    tol = c.tolerance * eps
+    v = 50 * tol                                   # a penetration well above the tolerance
+    a, b, drop, fine = 3, 7, 11, 12                # slave points
+    passes = [                                     # (slaves in contact, their gaps d)
+        ([a, drop, fine], [v, v, 0.5 * tol]),
+        ([b], [v]),
+        ([a, drop, fine], [v, 0.5 * PENALTY_DROP * v, 0.5 * tol]),
+        ([b], [v])]
+    last = np.full(m.normal.size, np.inf)
+    scales = []
+    for slaves, d in passes:
+        d = np.array(d)
+        pairs = SimpleNamespace(slave=np.array(slaves))
+        last = adapt_penalty(problem, pairs, d, np.zeros(d.size), m.normal.copy(), last)
+        scales.append(m.penalty_scale.copy())
+    g = c.penalty_growth
+    assert np.all(scales[1] == 1.0)                # first turns: nothing to compare with
+    assert scales[2][a] == g and scales[2][b] == 1.0
+    assert scales[3][a] == g and scales[3][b] == g
+    assert scales[3][drop] == 1.0 and scales[3][fine] == 1.0
+    untouched = np.setdiff1d(np.arange(m.normal.size), [a, b])
+    assert np.all(scales[3][untouched] == 1.0)
