@@ -286,8 +286,10 @@ class Problem:
         return self.to_basis(self.f_dist + f1 - f0)
 
     # -- evaluation --------------------------------------------------------
-    def evaluate(self, r, R, lam, tangent=True):
-        """:class:`Evaluation` at ``(r, R)`` and load factor ``lam``."""
+    def evaluate(self, r, R, lam, tangent=True, friction=None):
+        """:class:`Evaluation` at ``(r, R)`` and load factor ``lam``;
+        ``friction=False`` leaves the friction work out (default: as the
+        problem has it, :attr:`friction`)."""
         rod = self.rod
         t0 = time.perf_counter()
         iw = internal_work(self.mesh, r, R, rod.eps0, rod.C, tangent=tangent, Z=self.Z)
@@ -301,7 +303,7 @@ class Problem:
             K = K + Kp
         ce = None
         if self.contact is not None:
-            ce, fc, Kc = self._contact(r, R, tangent)
+            ce, fc, Kc = self._contact(r, R, tangent, friction)
             res = res + fc
             if tangent:
                 K = K + Kc
@@ -320,22 +322,25 @@ class Problem:
             K = K.tocsc()
         return Evaluation(residual=res, tangent=K, external=f_ext, internal=iw, contact=ce)
 
-    def _contact(self, r, R, tangent):
-        """Search, normal contact work and (friction on) friction work, on
-        the contact curve (the rod's centreline, or the smooth curve of
-        :attr:`contact_curve`, pulled back to the rod's dofs)."""
+    def _contact(self, r, R, tangent, friction=None):
+        """Search, normal contact work and (``friction``, default
+        :attr:`friction`) friction work, on the contact curve (the rod's
+        centreline, or the smooth curve of :attr:`contact_curve`, pulled
+        back to the rod's dofs)."""
+        friction = self.friction if friction is None else friction
         cc = self.contact_curve
         if cc is None:
-            return self._contact_on(self.mesh, r, R, self.reference, tangent)
+            return self._contact_on(self.mesh, r, R, self.reference, tangent, friction)
         ref = None if self.reference is None else (cc.positions(self.reference[0]),
                                                    cc.rotations(self.reference[1]))
         ce, force, K = self._contact_on(cc.mesh, cc.positions(r), cc.rotations(R), ref,
-                                        tangent)
+                                        tangent, friction)
         return ce, cc.force(force), (cc.tangent(K) if tangent else None)
 
-    def _contact_on(self, mesh, r, R, reference, tangent):
-        """Contact work on the curve of ``mesh`` at nodal ``(r, R)``, slips
-        measured from ``reference`` (friction on)."""
+    def _contact_on(self, mesh, r, R, reference, tangent, friction):
+        """Contact work on the curve of ``mesh`` at nodal ``(r, R)``, with
+        the friction work when ``friction`` (slips measured from
+        ``reference``)."""
         from .contact.assembly import contact_work
         from .contact.search import Preference, search
         c, m, tm = self.contact, self.multipliers, self.timers
@@ -354,7 +359,7 @@ class Problem:
         tm["contact_search"] += t1 - t0
         tm["contact_assembly"] += t2 - t1
         fr = None
-        if self.friction:
+        if friction:
             from .contact.friction_assembly import friction_work
             from .contact.law import NormalLaw
             from .contact.slip import SlipState
@@ -460,11 +465,7 @@ class Problem:
         ev = self.evaluate(r, R, lam, tangent=not self.friction)
         residual = self.residual_norm(ev) / self.force_scale(ev)
         if self.friction:
-            self.friction = False
-            try:
-                ev = self.evaluate(r, R, lam)
-            finally:
-                self.friction = True
+            ev = self.evaluate(r, R, lam, friction=False)
         idx = np.flatnonzero(self.free)
         Kf = ev.tangent[idx][:, idx].tocsc()
         return Kf, residual
