@@ -5,7 +5,8 @@ friction, the tightening and loosening branches within 1e-3 of the force.
 Ties the knot once (``knot.tie``, 60 elements by default), then runs the
 cycle of ``knot.solve`` from it (the end pulled by 0.2 in ``--steps`` steps
 and brought back in as many) with the demo's solver options, replaced or
-extended by ``--option name=value`` (JSON values, repeatable).  Reports the
+extended by ``--option name=value`` (JSON values, repeatable), and the
+cycle's contact options by ``--contact name=value``.  Reports the
 wall time of the tying and of the cycle, the gradient-flow steps, Newton
 iterations and Uzawa updates of the cycle, the steps whose Uzawa loop
 stopped at its limit (step, updates, penetration) and the number of steps that end on the gradient flow's state
@@ -14,7 +15,8 @@ pairs of steps at the same load factor (the tied state excluded), relative
 to the largest force, and every force of the cycle.
 
     python benchmarks/bench_knot.py [--gamma 0] [--elements 60] [--steps 10] \\
-        [--option position_correction=false ...] [--results]
+        [--option position_correction=false ...] [--contact penalty_memory=true ...] \\
+        [--results]
 
 ``--results`` appends the report to benchmarks/RESULTS_knot.md.
 """
@@ -38,20 +40,24 @@ from helpers import load_demo  # noqa: E402
 knot = load_demo("knot")
 
 
-def run(gamma=0.0, elements=60, steps=10, pull=0.2, options=None):
-    """Tie, then cycle; returns the figures of the module doc."""
+def run(gamma=0.0, elements=60, steps=10, pull=0.2, options=None, contact=None):
+    """Tie, then cycle; returns the figures of the module doc.  ``contact``:
+    contact options of the cycle's rod (``enable_contact`` keywords; the
+    knot is tied with the defaults)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")          # shortfalls are counted below
         t0 = time.perf_counter()
         tied = knot.tie(elements)
         t_tie = time.perf_counter() - t0
-        sol = knot.solve(gamma, pull, elements, steps, start=tied, options=options)
+        sol = knot.solve(gamma, pull, elements, steps, start=tied, options=options,
+                         **(contact or {}))
     res, rows = sol["result"], sol["rows"]
     F = np.array([w["force"] for w in rows])
     pairs = [(i, j) for i, j in knot.same_load_pairs(rows) if rows[i]["load_factor"] > 0]
     mismatch = max((abs(F[i] - F[j]) for i, j in pairs), default=np.nan) / np.abs(F).max()
     steps_ = res.steps
     return dict(gamma=gamma, elements=elements, steps=steps, options=options or {},
+                contact=contact or {},
                 converged=bool(res.converged), message=res.message,
                 tie_s=t_tie, cycle_s=sol["wall_time_s"],
                 flow_steps=int(sum(st.flow_steps for st in steps_)),
@@ -84,10 +90,12 @@ def main(argv=None):
     ap.add_argument("--gamma", type=float, default=0.0, help="tangential friction gamma_T")
     ap.add_argument("--elements", type=int, default=60)
     ap.add_argument("--steps", type=int, default=10, help="steps each way")
+    ap.add_argument("--contact", action="append", default=[],
+                    help="contact option name=value (JSON value) of the cycle, repeatable")
     add_option_arguments(ap, "RESULTS_knot.md")
     a = ap.parse_args(argv)
-    options = parse_options(a.option)
-    out = run(a.gamma, a.elements, a.steps, options=options)
+    out = run(a.gamma, a.elements, a.steps, options=parse_options(a.option),
+              contact=parse_options(a.contact))
     print(json.dumps(out, indent=1, default=str))
     if a.results:
         path = HERE / "RESULTS_knot.md"

@@ -13,12 +13,15 @@ In plain sight::
         lambda_N <- [lambda_N + d / mu_N]_+ ;  lambda_T, lambda_R <- f_T, f_R
         adapt the penalty where a violation did not drop (Bertsekas)
         next pass: inner solve from the last converged state
+    the next step's loop starts at the penalty reached (penalty_memory);
+        a first pass failing with it is solved again at the nominal one
     failed inner solve: multipliers restored, failure returned
 
 The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
 where a point's violation did not drop by a factor 4 over an update, its
 penalty stiffness grows by ``penalty_growth`` for the rest of the step
-(each step starts at the nominal penalty).  The converged answer is that
+and the next step starts from there (option ``penalty_memory``; without
+it every step starts at the nominal penalty).  The converged answer is that
 of the fixed penalty to the tolerances; only the path to it changes.
 """
 import numpy as np
@@ -62,6 +65,7 @@ def augmented_lagrangian(problem, solve_pass):
     if c is None:
         return solve_pass(None)
     saved = problem.multipliers.copy()
+    carried = carry_penalty(problem)
     total, uzawa = 0, 0
     last = np.full(problem.multipliers.normal.size, np.inf)   # last violation in contact
     last_moved = np.inf
@@ -69,6 +73,12 @@ def augmented_lagrangian(problem, solve_pass):
     while True:
         r, R, lam, rep = solve_pass(previous)
         total += rep.iterations
+        if not rep.converged and carried and previous is None:
+            # the carried penalty is a warm start, not part of the problem:
+            # a first pass that fails with it (a stiff contact under a large
+            # prescribed motion) is solved again at the nominal penalty
+            problem.multipliers, carried = saved.copy(), False
+            continue
         if not rep.converged:
             problem.multipliers = saved
             rep.newton_total = total
@@ -102,6 +112,18 @@ def augmented_lagrangian(problem, solve_pass):
             old = carry_crossing(m, ce.crossing)
             m.crossing_key, m.crossing = ce.crossing.key, uzawa_update(dc, old, c.crossing_penalty)
         uzawa += 1
+
+
+def carry_penalty(problem):
+    """Start the loop at the penalty factors the last step's loop ended
+    with (contact option ``penalty_memory``); True if any is above the
+    nominal one."""
+    start = problem.penalty_start
+    if not problem.contact.penalty_memory or start is None:
+        return False
+    m = problem.multipliers
+    m.penalty_scale = start.penalty_scale.copy()
+    return bool(m.penalty_scale.max(initial=1.0) > 1.0)
 
 
 def violations(problem, ce):
@@ -144,6 +166,7 @@ def finish(problem, r, rep, opened, saved):
     # back to the nominal penalty: at the converged multipliers the state is
     # an equilibrium for any penalty (to the tolerances), and the stability
     # check and the next step see the nominal tangent
+    problem.penalty_start = m.copy()
     problem.multipliers = m.nominal_penalty()
     rep.penalty_scale = scale
     true_distance(problem, r, rep)

@@ -11,14 +11,15 @@ from skfem_rod.problem import Problem
 from test_contact import SEC, hairpin
 
 
-def _hairpin(growth):
+def _hairpin(growth, memory=True):
     """The pressed hairpin of test_contact with a soft penalty (1000 times
     the library default compliance): fixed-penalty Uzawa converges by a
     factor close to 1 per update on its line contact."""
     eps = SEC.radius
     rod = Rod(hairpin(eps, 4 * eps), SEC, 30)
     rod.clamp("start").add_force("end", [0, -0.6, 0])
-    rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, penalty_growth=growth, max_uzawa=60)
+    rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, penalty_growth=growth, max_uzawa=60,
+                       penalty_memory=memory)
     return rod, rod.solve(n_steps=4)
 
 
@@ -42,6 +43,30 @@ def test_adaptive_penalty_needs_fewer_updates_for_the_same_answer():
     # the converged answer does not depend on the path: both satisfy the
     # contact law to tol, so the configurations agree to a few tol
     a, b = fixed.steps[-1], adaptive.steps[-1]
+    assert np.abs(a.r - b.r).max() <= 5 * tol
+    assert a.contact.total_force == pytest.approx(b.contact.total_force, rel=1e-2)
+
+
+@pytest.mark.slow
+def test_penalty_memory_same_answer_fewer_updates():
+    """The steps after the first start at the penalty the last step's loop
+    reached (``penalty_memory``): fewer Uzawa updates in those steps, the
+    same converged answer to the tolerances, every step within them."""
+    eps = SEC.radius
+    rod, nominal = _hairpin(4.0, memory=False)
+    _, carried = _hairpin(4.0, memory=True)
+    assert nominal.converged and carried.converged, (nominal.message, carried.message)
+    tol = rod.contact.tolerance * eps
+    for res in (nominal, carried):
+        for st in res.steps[1:]:
+            assert st.contact.uzawa_converged and st.contact.penetration <= tol
+            assert np.all(np.abs(st.contact.gap) <= tol)
+    # the first step with contact starts from the nominal penalty either way
+    first = next(k for k, st in enumerate(nominal.steps) if st.contact.uzawa > 0)
+    assert carried.steps[first].contact.uzawa == nominal.steps[first].contact.uzawa
+    later = [sum(st.contact.uzawa for st in res.steps[first + 1:]) for res in (nominal, carried)]
+    assert later[1] < later[0], later
+    a, b = nominal.steps[-1], carried.steps[-1]
     assert np.abs(a.r - b.r).max() <= 5 * tol
     assert a.contact.total_force == pytest.approx(b.contact.total_force, rel=1e-2)
 

@@ -60,12 +60,26 @@ class ContactOptions:
         multipliers' penalty update, ``solver._adapt_penalty``): at a point
         still short of its tolerance whose violation did not drop by a factor
         4 over an update, the penalty stiffness ``1 / mu_N`` is multiplied by
-        ``penalty_growth`` for the rest of the load step (every step starts
-        at the nominal penalty); default 4; 1 keeps the penalty fixed.
+        ``penalty_growth`` for the rest of the load step (the next step
+        starts from there, or at the nominal penalty without
+        ``penalty_memory``); default 4; 1 keeps the penalty fixed.
         The converged answer is the same to the tolerances; only the number
         of updates changes.
     max_penalty_scale : cap of that growth, as a multiple of the nominal
         penalty stiffness; default 1000.
+    penalty_memory : a step's Uzawa loop starts at the normal penalty
+        factors (per slave point) the last step's loop ended with, instead
+        of the nominal penalty; a first pass that fails with them is solved
+        again at the nominal one.  Default False.  Where a load path meets
+        the same contacts step after step it saves Uzawa passes: the
+        frictionless knot cycle, whose penalty grew to 16-64 times in
+        nearly every step, took 0.6 of the time with it.  Where contacts
+        change or slide it costs: the frictional knot (``gamma_T = 0.2``)
+        took 1.7 times longer, the plectoneme's snap three times as many
+        damped steps (docs/knot.md).  The converged state is the nominal
+        penalty's to the tolerances either way (the reported state, the
+        stability checks and the next step's predictor see the nominal
+        penalty).
     rotational_slip : what the rotational law acts on
         (:class:`.friction_assembly.FrictionParams`, docs/friction.md F7):
         ``"twist"`` (default), ``"circumferential"`` or ``"pivot"``.
@@ -112,6 +126,8 @@ class ContactOptions:
                                    lo=1.0, lo_open=False)
     max_penalty_scale: float = _field(1e3, "number", "cap of the adaptive penalty (times the "
                                                      "nominal one)", lo=1.0, lo_open=False)
+    penalty_memory: bool = _field(False, "boolean", "a step's Uzawa loop starts at the normal "
+                                                    "penalty factors the last step ended with")
     rotational_slip: str = _field("twist", "choice", "what the rotational friction law acts on",
                                   choices=("twist", "circumferential", "pivot"))
     curve: str = _field("elements", "choice", "the curve the contact acts on: the P3 "
