@@ -13,15 +13,15 @@ In plain sight::
         lambda_N <- [lambda_N + d / mu_N]_+ ;  lambda_T, lambda_R <- f_T, f_R
         adapt the penalty where a violation did not drop (Bertsekas)
         next pass: inner solve from the last converged state
-    the next step's loop starts at the penalty reached (penalty_memory);
+    the next step's loop starts at the normal penalty reached (penalty_memory);
         a first pass failing with it is solved again at the nominal one
     failed inner solve: multipliers restored, failure returned
 
 The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
 where a point's violation did not drop by a factor 4 over an update, its
-penalty stiffness grows by ``penalty_growth`` for the rest of the step
-and the next step starts from there (option ``penalty_memory``; without
-it every step starts at the nominal penalty).  The converged answer is that
+penalty stiffness grows by ``penalty_growth`` for the rest of the step;
+with the option ``penalty_memory`` the next step starts from there, else
+every step starts at the nominal penalty.  The converged answer is that
 of the fixed penalty to the tolerances; only the path to it changes.
 """
 import numpy as np
@@ -115,15 +115,14 @@ def augmented_lagrangian(problem, solve_pass):
 
 
 def carry_penalty(problem):
-    """Start the loop at the penalty factors the last step's loop ended
-    with (contact option ``penalty_memory``); True if any is above the
-    nominal one."""
+    """Start the loop at the normal penalty factors the last step's loop
+    ended with (contact option ``penalty_memory``); True if any is above
+    the nominal one."""
     start = problem.penalty_start
     if not problem.contact.penalty_memory or start is None:
         return False
-    m = problem.multipliers
-    m.penalty_scale = start.penalty_scale.copy()
-    return bool(m.penalty_scale.max(initial=1.0) > 1.0)
+    problem.multipliers.penalty_scale = start.copy()
+    return bool(start.max(initial=1.0) > 1.0)
 
 
 def violations(problem, ce):
@@ -166,7 +165,8 @@ def finish(problem, r, rep, opened, saved):
     # back to the nominal penalty: at the converged multipliers the state is
     # an equilibrium for any penalty (to the tolerances), and the stability
     # check and the next step see the nominal tangent
-    problem.penalty_start = m.copy()
+    if c.penalty_memory:
+        problem.penalty_start = m.penalty_scale.copy()
     problem.multipliers = m.nominal_penalty()
     rep.penalty_scale = scale
     true_distance(problem, r, rep)

@@ -185,8 +185,9 @@ class Problem:
             #: contact tolerance (contact/search.py: kinks at nodes)
             self.last_master = np.full(self.slaves.s.size, -1)
             self.multipliers = Multipliers.zeros(self.slaves.s.size, self.friction)
-            #: the penalty factors a step's Uzawa loop ended with, where the
-            #: next step's loop starts (option penalty_memory; None: nominal)
+            #: the normal penalty factors a step's Uzawa loop ended with,
+            #: where the next step's loop starts (option penalty_memory;
+            #: None: at the nominal penalty)
             self.penalty_start = None
             if self.contact.crossing:
                 from .contact.crossing import CrossingTrack

@@ -157,3 +157,41 @@ def test_penalty_grows_where_two_points_take_turns_to_carry_a_contact():
     assert scales[3][drop] == 1.0 and scales[3][fine] == 1.0
     untouched = np.setdiff1d(np.arange(m.normal.size), [a, b])
     assert np.all(scales[3][untouched] == 1.0)
+
+
+@pytest.mark.parametrize("memory", [False, True])
+def test_a_first_pass_failing_at_the_carried_penalty_runs_again_at_the_nominal_one(memory):
+    """The loop of a step whose last step raised the penalty of some
+    points, around an inner solve that fails at any raised penalty: with
+    ``penalty_memory`` the first pass runs at the carried factors, fails and
+    runs again at the nominal ones (converged); without, it runs once at
+    the nominal ones.  A failure at the nominal penalty is the step's
+    failure, with the multipliers as they were."""
+    from skfem_rod.augmented import augmented_lagrangian
+    from skfem_rod.problem import Report
+    rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 8)    # legs apart: no contact
+    rod.enable_contact(penalty_memory=memory)
+    problem = Problem(rod)
+    n = problem.multipliers.normal.size
+    problem.penalty_start = np.where(np.arange(n) % 3 == 0, 16.0, 1.0)
+    seen = []
+
+    def solve_pass(previous, fails_at_nominal=False):
+        scale = float(problem.multipliers.penalty_scale.max())
+        seen.append(scale)
+        if scale > 1.0 or fails_at_nominal:
+            return rod.r0, rod.R0, 0.0, Report(False, iterations=3, reason="too stiff")
+        return rod.r0, rod.R0, 0.0, Report(True, iterations=2,
+                                           evaluation=problem.evaluate(rod.r0, rod.R0, 0.0))
+
+    *_, rep = augmented_lagrangian(problem, solve_pass)
+    assert rep.converged and rep.uzawa_converged
+    assert seen == ([16.0, 1.0] if memory else [1.0])
+    assert rep.newton_total == (5 if memory else 2)
+    assert np.all(problem.multipliers.penalty_scale == 1.0)
+    seen.clear()
+    saved = problem.multipliers.copy()
+    *_, rep = augmented_lagrangian(problem, lambda prev: solve_pass(prev, True))
+    assert not rep.converged and rep.reason == "too stiff"
+    assert np.array_equal(problem.multipliers.penalty_scale, saved.penalty_scale)
+    assert np.array_equal(problem.multipliers.normal, saved.normal)
