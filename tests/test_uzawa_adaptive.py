@@ -1,5 +1,5 @@
 """Adaptive penalty of the Uzawa loop (the method of multipliers' penalty
-update, ``solver._adapt_penalty``): fewer updates, the same converged answer
+update, ``augmented.adapt_penalty``): fewer updates, the same converged answer
 to the tolerances, bad options refused, and the penalty factors saved and
 restored with the multipliers of a rejected step."""
 import numpy as np

@@ -57,7 +57,7 @@ class ContactOptions:
         within ``friction_tolerance * gamma f_N`` of its slip's direction
         (``augmented.coulomb_misfit``); default 1e-3.
     penalty_growth : adaptive penalty of the Uzawa loop (the method of
-        multipliers' penalty update, ``solver._adapt_penalty``): at a point
+        multipliers' penalty update, ``augmented.adapt_penalty``): at a point
         still short of its tolerance whose violation did not drop by a factor
         4 over an update, the penalty stiffness ``1 / mu_N`` is multiplied by
         ``penalty_growth`` for the rest of the load step (the next step
