@@ -291,3 +291,35 @@ def test_rigid_load_step_without_push_forward_reads_slip(monkeypatch):
         assert np.abs(c1.force_T - c0.force_T @ Q.T).max() > 0.1 * np.abs(c0.force_T).max()
     else:
         assert len(res.steps) == 1 and "no convergence" in res.message
+
+
+def test_evaluation_without_the_friction_work():
+    """``Problem.evaluate(..., friction=False)`` (the stability checks'
+    tangent) is the evaluation of the same contact without friction: equal
+    to a frictionless problem's at the same state and normal multipliers,
+    and different from the frictional one where the contact slips."""
+    from dataclasses import replace
+
+    from skfem_rod.problem import Problem
+    rng = np.random.default_rng(3)
+    theta = np.zeros(3)
+    rod = _pressed_hairpin(np.eye(3), np.zeros(3), theta)
+    st = rod.solve(1).steps[0]                  # step 0: pressed, slipping
+    assert st.contact.s.size >= 3 and np.any(st.contact.state_T == law.SLIP)
+    frictional = Problem(rod)
+    plain_rod = _pressed_hairpin(np.eye(3), np.zeros(3), theta)
+    plain_rod.contact = replace(plain_rod.contact, gamma_T=0.0, gamma_R=0.0)
+    plain = Problem(plain_rod)
+    lam_N = rng.uniform(0.5, 1.5, frictional.multipliers.normal.size)
+    frictional.multipliers.normal = lam_N.copy()
+    plain.multipliers.normal = lam_N.copy()
+    r, R = st.r, st.R
+    a = frictional.evaluate(r, R, 0.0, friction=False)
+    b = plain.evaluate(r, R, 0.0)
+    full = frictional.evaluate(r, R, 0.0)
+    assert a.contact.friction is None
+    np.testing.assert_array_equal(a.residual, b.residual)
+    assert abs(a.tangent - b.tangent).max() == 0.0
+    assert full.contact.friction is not None
+    assert np.abs(full.residual - a.residual).max() > 1e-6     # the friction work (7.7e-3)
+    assert frictional.friction            # the problem itself is unchanged
