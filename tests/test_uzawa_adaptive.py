@@ -11,7 +11,7 @@ from skfem_rod.problem import Problem
 from test_contact import SEC, hairpin
 
 
-def _hairpin(growth, memory=True):
+def _hairpin(growth, memory=False):
     """The pressed hairpin of test_contact with a soft penalty (1000 times
     the library default compliance): fixed-penalty Uzawa converges by a
     factor close to 1 per update on its line contact."""
