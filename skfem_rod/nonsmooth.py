@@ -188,12 +188,13 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     act = np.flatnonzero(cs.active)
     dl = -cs.C / cs.D
     free = sp.diags(np.where(fixed, 0.0, 1.0))
+    K_ly_act = cs.K_ly.tocsr()[act]
     K_yl = free @ cs.K_yl.tocsc()[:, act]
-    K_ly = cs.K_ly.tocsr()[act] @ free
+    K_ly = K_ly_act @ free
     A = sp.bmat([[K, K_yl], [K_ly, sp.diags(cs.D[act])]], format="csc")
     rhs_y = -cs.G - ev.tangent @ remaining
     rhs_y[fixed] = 0.0
-    rhs_l = -cs.C[act] - cs.K_ly.tocsr()[act] @ remaining
+    rhs_l = -cs.C[act] - K_ly_act @ remaining
     t0 = time.perf_counter()
     # the band ordering of Problem.factor (contact couples distant stretches
     # of the rod), kept while the pattern stays; SuperLU's partial pivoting
