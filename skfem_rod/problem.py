@@ -184,6 +184,10 @@ class Problem:
             #: none), kept by the next search within KEEP_MASTER of the
             #: contact tolerance (contact/search.py: kinks at nodes)
             self.last_master = np.full(self.slaves.s.size, -1)
+            from .contact.search import NeighbourList
+            #: the broad phase's pairs, kept while no node moves more than
+            #: NEIGHBOUR_SKIN contact radii (contact/search.py: same answer)
+            self.neighbours = NeighbourList(skin=NEIGHBOUR_SKIN * self.contact.radius)
             self.multipliers = Multipliers.zeros(self.slaves.s.size, self.friction)
             #: the normal penalty factors a step's Uzawa loop ended with,
             #: where the next step's loop starts (option penalty_memory;
@@ -352,7 +356,8 @@ class Problem:
         reach = 2 * c.radius + (mu * m.normal).max(initial=0.0) + c.margin
         t0 = time.perf_counter()
         pairs = search(mesh, r, self.slaves, reach, c.exclusion,
-                       prefer=Preference(self.last_master, KEEP_MASTER * c.tolerance * c.radius))
+                       prefer=Preference(self.last_master, KEEP_MASTER * c.tolerance * c.radius),
+                       neighbours=self.neighbours)
         self.last_master = np.full_like(self.last_master, -1)
         self.last_master[pairs.slave] = pairs.m_elem
         t1 = time.perf_counter()
@@ -439,7 +444,7 @@ class Problem:
             def solve(rhs):
                 return lu.solve(np.where(fixed, 0.0, rhs))
         else:
-            lu = spla.splu(A, permc_spec="NATURAL")
+            lu = spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=BAND_PIVOT_THRESHOLD)
 
             def solve(rhs):
                 x = np.empty_like(rhs)
@@ -479,6 +484,10 @@ class Problem:
 #: this fraction of the contact tolerance of the closest one
 KEEP_MASTER = 0.1
 
+#: nodal move, in contact radii, before the contact search's broad phase is
+#: run again (:class:`skfem_rod.contact.search.NeighbourList`)
+NEIGHBOUR_SKIN = 0.5
+
 #: a position correction follows a Newton update that raised the residual
 #: norm by more than this factor (:func:`position_correction`)
 CORRECT_ABOVE = 10.0
@@ -497,6 +506,16 @@ class Increment(NamedTuple):
     (bordered continuation) or the normal multipliers' (generalized Newton)."""
     dy: np.ndarray
     dl: object = 0.0
+
+
+#: SuperLU's threshold for keeping a diagonal pivot in the band-ordered
+#: factorization (contact on, :class:`FactorPattern`): the diagonal is taken
+#: unless it is below this fraction of the largest entry of its column
+#: below the diagonal.  Row swaps widen the band; with SuperLU's default
+#: (1.0, partial pivoting) the knot's tangents (1086 dofs, band 80) took
+#: 1.79 ms per factorization, with 0.01 1.10 ms at the same backward error
+#: (1e-16; benchmarks/RESULTS_evaluation.md).
+BAND_PIVOT_THRESHOLD = 0.01
 
 
 def spin_cap(dy, largest):

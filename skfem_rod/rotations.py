@@ -145,31 +145,29 @@ def expm(psi):
 
 def quat_from_matrix(R):
     """Unit quaternion (scalar first, ``w >= 0``) of rotation matrices
-    (Shepperd's method, robust for every angle)."""
+    (Shepperd's method, robust for every angle).
+
+    The entries of ``P = 4 q q^T`` are linear in ``R``: the diagonal
+    ``1 + tr R``, ``1 + 2 R_ii - tr R`` and the off-diagonal sums and
+    differences of ``R``'s transposed entries.  The row ``k`` of the
+    largest diagonal entry is ``4 q_k q``, far from zero: normalized, it is
+    ``q`` up to sign."""
     R = np.asarray(R, dtype=float)
-    tr = np.trace(R, axis1=-2, axis2=-1)
-    d = np.stack([tr, R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]], axis=-1)
-    k = np.argmax(d, axis=-1)
-    q = np.empty(R.shape[:-2] + (4,))
-    # case k = 0 (trace largest)
-    w = np.sqrt(np.maximum(1 + tr, 0.0)) / 2
-    cand = [np.stack([w,
-                      (R[..., 2, 1] - R[..., 1, 2]) / (4 * np.where(w == 0, 1, w)),
-                      (R[..., 0, 2] - R[..., 2, 0]) / (4 * np.where(w == 0, 1, w)),
-                      (R[..., 1, 0] - R[..., 0, 1]) / (4 * np.where(w == 0, 1, w))],
-                     axis=-1)]
-    for i in range(3):
-        j, l = (i + 1) % 3, (i + 2) % 3
-        qi = np.sqrt(np.maximum(1 + 2 * R[..., i, i] - tr, 0.0)) / 2
-        den = 4 * np.where(qi == 0, 1, qi)
-        comp = [None] * 4
-        comp[0] = (R[..., l, j] - R[..., j, l]) / den
-        comp[1 + i] = qi
-        comp[1 + j] = (R[..., j, i] + R[..., i, j]) / den
-        comp[1 + l] = (R[..., l, i] + R[..., i, l]) / den
-        cand.append(np.stack(comp, axis=-1))
-    cand = np.stack(cand, axis=0)
-    q = np.take_along_axis(cand, k[None, ..., None], axis=0)[0]
+    r00, r11, r22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    tr = r00 + r11 + r22
+    P = np.empty(R.shape[:-2] + (4, 4))
+    P[..., 0, 0] = 1.0 + tr
+    P[..., 1, 1] = 1.0 + 2.0 * r00 - tr
+    P[..., 2, 2] = 1.0 + 2.0 * r11 - tr
+    P[..., 3, 3] = 1.0 + 2.0 * r22 - tr
+    P[..., 0, 1] = P[..., 1, 0] = R[..., 2, 1] - R[..., 1, 2]
+    P[..., 0, 2] = P[..., 2, 0] = R[..., 0, 2] - R[..., 2, 0]
+    P[..., 0, 3] = P[..., 3, 0] = R[..., 1, 0] - R[..., 0, 1]
+    P[..., 1, 2] = P[..., 2, 1] = R[..., 1, 0] + R[..., 0, 1]
+    P[..., 1, 3] = P[..., 3, 1] = R[..., 0, 2] + R[..., 2, 0]
+    P[..., 2, 3] = P[..., 3, 2] = R[..., 2, 1] + R[..., 1, 2]
+    k = np.argmax(np.diagonal(P, axis1=-2, axis2=-1), axis=-1)
+    q = np.take_along_axis(P, k[..., None, None], axis=-2)[..., 0, :]
     q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 

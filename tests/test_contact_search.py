@@ -198,3 +198,41 @@ def test_a_slave_keeps_its_master_element_at_a_kink():
     # the other way round too
     keep1 = search_mod.Preference(np.ones(sl.s.size, int), tol)
     assert closest(-dx, keep1)[0] == 1 and closest(-2.0 * tol / np.sin(alpha), keep1)[0] == 0
+
+
+@pytest.mark.parametrize("scene", ["hairpin", "plectoneme", "helix"])
+def test_neighbour_list_gives_the_search_without_it(scene):
+    """A :class:`NeighbourList` keeps the broad phase's pairs while the
+    nodes stay within its skin: along a random motion of the nodes (lists
+    kept for a few searches and rebuilt after), every search with the list returns the
+    pairs of a search without it, bit for bit (moves of 0.3 skin per
+    search); a growing reach rebuilds."""
+    rng = np.random.default_rng({"hairpin": 1, "plectoneme": 2, "helix": 3}[scene])
+    if scene == "hairpin":
+        eps = 0.105
+        rod = Rod(hairpin(eps, 0.2, leg=1.0), SEC, 64)
+        reach, excl = 2 * eps + 0.05, np.pi * eps
+    elif scene == "plectoneme":
+        eps, rod = 1.0, plect_rod(100)
+        reach, excl = 3.0, np.pi
+    else:
+        eps = 0.01
+        rod = Rod(geometry.helix(radius=0.1, pitch=2.2 * eps, turns=4),
+                  Section(EA=1, GA1=1, GA2=1, EI1=1, EI2=1, GJ=1, radius=eps), 400)
+        reach, excl = 3 * eps, np.pi * eps
+    sl = slave_points(rod.mesh, 3)
+    nl = search_mod.NeighbourList(skin=0.5 * eps)
+    r = rod.r0.copy()
+    drift = rng.normal(size=r.shape)              # a steady motion, and noise
+    for k in range(16):
+        step = drift + 0.5 * rng.normal(size=r.shape)
+        r = r + 0.3 * nl.skin * step / np.linalg.norm(step, axis=1).max()
+        kept = search(rod.mesh, r, sl, reach, excl, neighbours=nl)
+        new = search(rod.mesh, r, sl, reach, excl)
+        assert new.size > 0
+        for name in ("slave", "m_elem", "m_xi", "s_bar", "distance", "normal", "interior"):
+            assert np.array_equal(getattr(kept, name), getattr(new, name)), name
+    assert 2 <= nl.builds <= 8               # kept for a few searches, rebuilt after
+    builds = nl.builds
+    search(rod.mesh, r, sl, 1.5 * reach, excl, neighbours=nl)
+    assert nl.builds == builds + 1

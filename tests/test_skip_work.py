@@ -254,6 +254,42 @@ def test_factor_derives_the_pattern_work_once_per_pattern(monkeypatch, contact):
     assert len(derived) == 4
 
 
+@pytest.mark.parametrize("diagonal", [0.0, 1e-9])
+def test_band_factor_pivots_off_a_vanishing_diagonal(diagonal):
+    """The band-ordered factorization (contact on) keeps diagonal pivots
+    only above ``BAND_PIVOT_THRESHOLD`` of their column: an indefinite
+    tangent whose diagonal vanishes at a free dof in the band order (a
+    saddle-point block, as a contact pair on a soft mode gives) is still
+    solved to round-off (without pivoting the block's two unknowns, a
+    well-conditioned 2x2 system, lose half their digits or more)."""
+    from skfem_rod import problem as problem_mod
+    rod = rollup_rod(6)
+    rod.enable_contact(radius=0.005)
+    system = problem_mod.Problem(rod)
+    K = system.evaluate(rod.r0, rod.R0, 0.0).tangent.tolil()
+    free = np.flatnonzero(system.free)
+    a, b = free[0], free[1]                  # x and y of the first free node
+    scale = abs(K[a, a])
+    # the 2x2 block [[d, s], [s, d]] with d ~ 0, cut from the rest: whichever
+    # of a, b comes first in the band order meets the pivot d (stable only
+    # with a row swap)
+    for i in (a, b):
+        K[i, :] = 0.0
+        K[:, i] = 0.0
+    K[a, a] = K[b, b] = diagonal * scale
+    K[a, b] = K[b, a] = scale
+    K = K.tocsc()
+    rng = np.random.default_rng(5)
+    rhs = rng.standard_normal(K.shape[0])
+    x = system.factor(K)(rhs)
+    assert np.all(np.isfinite(x))
+    block = scale * np.array([[diagonal, 1.0], [1.0, diagonal]])    # cond ~ 1
+    np.testing.assert_allclose(x[[a, b]], np.linalg.solve(block, rhs[[a, b]]), rtol=1e-12)
+    f = system.free
+    A = K.toarray()[np.ix_(f, f)]
+    np.testing.assert_allclose(A @ x[f], rhs[f], atol=1e-9 * np.abs(rhs).max())
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_broad_phase_returns_only_pairs_within_reach(seed):
     """A randomly (smoothly) perturbed coil: every returned pair is closer than the

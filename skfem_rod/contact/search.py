@@ -300,10 +300,15 @@ def _hierarchy(r_el, branching=BRANCHING):
     return vxT, levels
 
 
-def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BRANCHING):
+def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BRANCHING,
+                 margin=0.0):
     """Candidate (slave, element) pairs: the elements not wholly inside the
     slave's excluded arclength whose capsule comes closer than ``reach``
-    and than an upper bound of the slave's closest admissible distance.
+    and than an upper bound of the slave's closest admissible distance
+    (with ``margin``: closer than ``reach + margin`` and than that bound
+    plus ``2 margin``, so that the pairs stay a superset of the answer
+    while every distance changes by at most ``margin``: a
+    :class:`NeighbourList`).
 
     Branch and bound down the capsule hierarchy (:func:`_hierarchy`),
     vectorized over the slaves level by level.  It starts at the level
@@ -329,7 +334,8 @@ def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BR
     centre = 0.5 * (vxT[:, f] + vxT[:, l]).T
     rad = 0.5 * _norm3(vxT[:, l] - vxT[:, f]) + dev
     tree_s, tree_c = cKDTree(x), cKDTree(centre)
-    cand = tree_s.sparse_distance_matrix(tree_c, rad.max() + reach, output_type="ndarray")
+    cand = tree_s.sparse_distance_matrix(tree_c, rad.max() + reach + margin,
+                                         output_type="ndarray")
     i, j = cand["i"].astype(np.int64), cand["j"].astype(np.int64)
     ub = np.full(x.shape[0], np.inf)
     for k in range(K, -1, -1):
@@ -343,7 +349,7 @@ def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BR
         v = fj + np.rint(t * (lj - fj)).astype(np.int64)
         ok = np.flatnonzero(arc_distance(vertices[v], s_sl[i], period) >= exclusion + h_max)
         np.minimum.at(ub, i[ok], _norm3(xi[:, ok] - vxT[:, v[ok]]))
-        keep = (lb < reach) & (lb <= ub[i] * (1.0 + 1e-10))
+        keep = (lb < reach + margin) & (lb <= ub[i] * (1.0 + 1e-10) + 2.0 * margin)
         i, j = i[keep], j[keep]
         if k == 0:
             break
@@ -352,8 +358,48 @@ def _broad_phase(x, s_sl, r_el, vertices, reach, exclusion, period, branching=BR
         i = np.repeat(i, branching)
         keep = j < n_child
         i, j = i[keep], j[keep]
-    keep = lb[keep] <= ub[i] * (1.0 + 1e-10)
+    keep = lb[keep] <= ub[i] * (1.0 + 1e-10) + 2.0 * margin
     return i[keep], j[keep]
+
+
+#: Lebesgue constant of the cubic element's nodal basis (equispaced
+#: nodes), with a hair of slack: no point of an element curve moves more
+#: than this times the largest move of the element's nodes
+LEBESGUE = 1.0001 * float(np.abs(np.stack(shape_functions(np.linspace(0.0, 1.0, 20001))[0]))
+                          .sum(axis=0).max())
+
+
+@dataclass
+class NeighbourList:
+    """Broad-phase candidates kept between searches (a Verlet list).
+
+    The broad phase (:func:`_broad_phase`) is run with a margin ``2
+    LEBESGUE skin`` and its pairs are kept while no node has moved more
+    than ``skin`` from where they were found and ``reach`` has not grown:
+    a slave point and an element curve then move by at most ``LEBESGUE
+    skin`` each, every distance by at most the margin, and the kept pairs
+    are a superset of what a new broad phase would return.  The narrow
+    phase sees the same closest points (a candidate beyond them is bounded
+    out or projected farther), so a search with the list gives the answer
+    of one without it; the lower bounds of the candidates are recomputed
+    at every search.  Newton iterations, proximal and damped steps move the
+    nodes by small amounts, so most searches skip the broad phase."""
+    skin: float
+    r: np.ndarray = None          # nodal positions where the pairs were found
+    reach: float = None           # the reach they were found for
+    i: np.ndarray = None
+    j: np.ndarray = None
+    builds: int = 0               # broad phases run (benchmarks, tests)
+
+    def pairs(self, r, reach, find):
+        """The kept ``(i, j)``, or new ones from ``find(margin)`` when
+        ``r`` moved beyond ``skin`` or ``reach`` grew."""
+        if (self.r is None or r.shape != self.r.shape or reach > self.reach
+                or np.einsum("nc,nc->n", r - self.r, r - self.r).max() > self.skin ** 2):
+            self.i, self.j = find(2.0 * LEBESGUE * self.skin)
+            self.r, self.reach = r.copy(), reach
+            self.builds += 1
+        return self.i, self.j
 
 
 @dataclass(frozen=True)
@@ -373,7 +419,7 @@ class _Query:
     prefer: Preference = None
 
 
-def search(mesh, r, slaves, reach, exclusion, prefer=None):
+def search(mesh, r, slaves, reach, exclusion, prefer=None, neighbours=None):
     """All slave/master pairs with a centreline distance below ``reach``.
 
     Parameters
@@ -389,6 +435,8 @@ def search(mesh, r, slaves, reach, exclusion, prefer=None):
         Excluded arclength around each slave (see module docstring).
     prefer : :class:`Preference`, optional
         The master elements to keep (module docstring: kinks at nodes).
+    neighbours : :class:`NeighbourList`, optional
+        Broad-phase pairs kept between searches of one rod (same answer).
 
     Notes
     -----
@@ -411,7 +459,7 @@ def search(mesh, r, slaves, reach, exclusion, prefer=None):
                C=monomial_coefficients(r_el).transpose(1, 2, 0),      # (4, 3, ne)
                vertices=mesh.vertices, period=arclength_period(mesh), reach=reach,
                exclusion=exclusion, prefer=prefer)
-    i, j, lb = _candidates(q, r_el)
+    i, j, lb = _candidates(q, r_el, r, neighbours)
     if i.size == 0:
         return _empty(0)
     found, n_cand = _narrow_phase(q, i, j, lb)
@@ -420,12 +468,17 @@ def search(mesh, r, slaves, reach, exclusion, prefer=None):
     return _closest(q, slaves, i, j, found, n_cand)
 
 
-def _candidates(q, r_el):
-    """Candidate (slave ``i``, element ``j``) pairs of the broad phase in a
-    deterministic order, with ``lb``, a lower bound of their distance (to
-    the nearest sub-arc capsule, :func:`_capsules`), below ``reach``."""
+def _candidates(q, r_el, r, neighbours=None):
+    """Candidate (slave ``i``, element ``j``) pairs of the broad phase (or
+    of the :class:`NeighbourList` ``neighbours`` at nodal positions ``r``)
+    in a deterministic order, with ``lb``, a lower bound of their distance
+    (to the nearest sub-arc capsule, :func:`_capsules`), below ``reach``."""
     p0, p1, dev = _capsules(r_el)                            # sub-arc capsules
-    i, j = _broad_phase(q.x, q.s, r_el, q.vertices, q.reach, q.exclusion, q.period)
+
+    def find(margin=0.0):
+        return _broad_phase(q.x, q.s, r_el, q.vertices, q.reach, q.exclusion, q.period,
+                            margin=margin)
+    i, j = find() if neighbours is None else neighbours.pairs(r, q.reach, find)
     order = np.lexsort((j, i))                               # deterministic order
     i, j = i[order], j[order]
     xi_ = q.xT[:, i]
