@@ -33,6 +33,15 @@ Each candidate gets a rigorous lower bound of its distance (to the
 capsules around the chords of the element's three sub-arcs,
 :func:`_capsules`); candidates bounded beyond ``reach`` go.
 
+*Neighbour list.*  Between the searches of one solve the nodes move by
+little (Newton iterations, proximal and damped steps), so the
+:class:`~skfem_rod.problem.Problem` keeps the broad phase's pairs in a
+:class:`NeighbourList` (a Verlet list): found with a margin of ``2 LEBESGUE
+skin`` and kept until a node has moved ``skin`` (half a contact radius) or
+the reach has grown.  Every distance then changes by less than the margin,
+so the kept pairs hold every candidate of a new broad phase, and the
+search returns the same pairs (``tests/test_contact_search.py``).
+
 *Narrow phase.*  A safeguarded Newton projection of the slave point on a
 candidate cubic element (parameter clamped to the element, started from
 the best of five samples; monomial coefficients, vectorized over pairs).
