@@ -199,35 +199,41 @@ def chart_curvature(loc, ch, g):
     multiplicative update, with ``g`` the element gradient in local dofs
     ``(ne, 24)`` and ``ch`` the :class:`Chart` of ``loc``.  Returns
     ``(ne, 24, 24)`` (rows: test, cols: increment).
+
+    Per node ``I`` (all four at once; ``a`` the reference node, spins
+    ``w_a``), with ``G_I = R_r g_rho,I``:
+    ``[rho_I, w_a] -= hat(G_I)``, ``[w_a, rho_I] += hat(G_I)``, ``[w_a, w_a]
+    += R_r hat(g_rho,I) hat(rho_I) R_r^T - hat(R_r (g_rho,I x rho_I))``;
+    and for ``I != a``, with ``h_I = T_I^{-T} g_psi,I``, ``H_I = R_r h_I``
+    and ``M_I = -P_I^T Q(psi_I, h_I) P_I`` (:func:`dtangent_form`):
+    ``[w_I, w_I] += M_I``, ``[w_I, w_a] -= M_I + hat(H_I)``, ``[w_a, w_I] -=
+    M_I``, ``[w_a, w_a] += M_I + hat(H_I)``.
     """
     ne = loc.Rr.shape[0]
     a = REF_NODE
     Rr = loc.Rr
     RrT = np.swapaxes(Rr, -1, -2)
     Gc = np.zeros((ne, 24, 24))
-    wa = slice(6 * a + 3, 6 * a + 6)
-    P, Tinv = ch.P, ch.Tinv
-    coef = coefficients(loc.psi, 1)                                 # all nodes at once
-    for I in range(4):
-        g_rho = g[:, 6 * I:6 * I + 3]
-        G_sp = np.einsum("eij,ej->ei", Rr, g_rho)
-        rI = slice(6 * I, 6 * I + 3)
-        Gc[:, rI, wa] += -hat(G_sp)
-        Gc[:, wa, rI] += hat(G_sp)
-        Gc[:, wa, wa] += (Rr @ hat(g_rho) @ hat(loc.rho[:, I]) @ RrT
-                          - hat(np.einsum("eij,ej->ei", Rr,
-                                          cross(g_rho, loc.rho[:, I]))))
-        if I == a:
-            continue
-        g_psi = g[:, 6 * I + 3:6 * I + 6]
-        h = np.einsum("eji,ej->ei", Tinv[:, I], g_psi)
-        H_sp = np.einsum("eij,ej->ei", Rr, h)
-        Q = dtangent_form(loc.psi[:, I], h, [c[:, I] for c in coef])
-        PI = P[:, I]
-        M = -np.swapaxes(PI, -1, -2) @ Q @ PI
-        wI = slice(6 * I + 3, 6 * I + 6)
-        Gc[:, wI, wI] += M
-        Gc[:, wI, wa] += -M - hat(H_sp)
-        Gc[:, wa, wI] += -M
-        Gc[:, wa, wa] += M + hat(H_sp)
+    G5 = Gc.reshape(ne, 4, 6, 4, 6)                 # [e, I, row, J, col]: a view
+    g6 = g.reshape(ne, 4, 6)
+    g_rho = g6[:, :, :3]
+    rho = loc.rho
+    # the position rows and columns, every node
+    HG = hat(np.einsum("eij,eIj->eIi", Rr, g_rho))   # (ne, 4, 3, 3)
+    G5[:, :, :3, a, 3:] -= HG
+    G5[:, a, 3:, :, :3] += np.swapaxes(HG, 1, 2)
+    waa = (Rr @ np.einsum("eIij,eIjk->eik", hat(g_rho), hat(rho)) @ RrT
+           - hat(np.einsum("eij,ej->ei", Rr, cross(g_rho, rho).sum(axis=1))))
+    # the spin rows and columns, the nodes other than a
+    o = np.array([I for I in range(4) if I != a])
+    h = np.einsum("eIji,eIj->eIi", ch.Tinv[:, o], g6[:, o, 3:])
+    HH = hat(np.einsum("eij,eIj->eIi", Rr, h))
+    coef = coefficients(loc.psi[:, o], 1)
+    PI = ch.P[:, o]
+    M = -np.swapaxes(PI, -1, -2) @ dtangent_form(loc.psi[:, o], h, coef) @ PI
+    G5[:, o, 3:, o, 3:] += np.swapaxes(M, 0, 1)     # two index arrays: their axis first
+    G5[:, :, :, a][:, o, 3:, 3:] -= M + HH          # column node a: a view first
+    Ga = G5[:, a]                                   # [e, row, J, col]: a view
+    Ga[:, 3:, o, 3:] -= np.swapaxes(M, 1, 2)
+    Ga[:, 3:, a, 3:] += waa + (M + HH).sum(axis=1)
     return Gc

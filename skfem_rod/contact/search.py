@@ -150,14 +150,17 @@ def curve_point(C, xi):
     return y, y1, y2
 
 
+#: the start of the projection: the best of five samples of the element
+_SAMPLES = np.linspace(0.0, 1.0, 5)
+_SAMPLE_POWERS = np.vander(_SAMPLES, 4, increasing=True)          # (5, 4): 1, t, t^2, t^3
+
+
 def _project(x, C, iterations=12):
     """:func:`project` for points ``x`` ``(3, m)`` on curves ``C``
     ``(4, 3, m)``; also returns the closest points ``(3, m)``."""
     m = x.shape[1]
-    samples = np.linspace(0.0, 1.0, 5)
-    d2 = np.stack([np.sum((((C[3] * t + C[2]) * t + C[1]) * t + C[0] - x) ** 2, axis=0)
-                   for t in samples])
-    xi = samples[np.argmin(d2, axis=0)]
+    d = np.einsum("tp,pcm->tcm", _SAMPLE_POWERS, C) - x       # (5, 3, m)
+    xi = _SAMPLES[np.argmin(np.einsum("tcm,tcm->tm", d, d), axis=0)]
     todo = np.arange(m)
     Ct, xt, xit = C, x, xi.copy()
     for _ in range(iterations):
