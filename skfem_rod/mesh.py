@@ -143,6 +143,9 @@ class RodMesh:
         ucol = ukey // self.n_dofs
         self._indptr = np.searchsorted(ucol, np.arange(self.n_dofs + 1)).astype(np.int32)
         self._nnz = ukey.size
+        #: data positions of the diagonal (every dof couples with itself)
+        self._diagonal = np.searchsorted(ukey, np.arange(self.n_dofs, dtype=np.int64)
+                                         * (self.n_dofs + 1))
 
     def assemble_matrix(self, Ke):
         """Global CSC matrix from element matrices ``(ne, 24, 24)``
@@ -150,6 +153,13 @@ class RodMesh:
         data = np.bincount(self._scatter, weights=Ke.ravel(), minlength=self._nnz)
         return sp.csc_matrix((data, self._indices.copy(), self._indptr.copy()),
                              shape=(self.n_dofs, self.n_dofs))
+
+    def add_diagonal(self, K, d):
+        """``K + diag(d)`` for a matrix ``K`` of :meth:`assemble_matrix`
+        (its pattern holds the diagonal): a new matrix, ``K`` unchanged."""
+        data = K.data.copy()
+        data[self._diagonal] += d
+        return sp.csc_matrix((data, K.indices.copy(), K.indptr.copy()), shape=K.shape)
 
     def assemble_vector(self, fe):
         """Global vector from element vectors ``(ne, 24)``."""

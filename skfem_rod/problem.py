@@ -307,6 +307,9 @@ class Problem:
         f_ext = lam * self.f_dist + fp
         res = iw.force - f_ext
         K = iw.matrix
+        v = self.viscous
+        if tangent and v is not None:        # into the internal pattern's diagonal
+            K = self.mesh.add_diagonal(K, v.c * v.W)
         if tangent and Kp is not None:
             K = K + Kp
         ce = None
@@ -315,12 +318,9 @@ class Problem:
             res = res + fc
             if tangent:
                 K = K + Kc
-        if self.viscous is not None:
-            v = self.viscous
+        if v is not None:
             res = res + v.c * v.W * np.concatenate(
                 [r - v.r_ref, spin_between(R, v.R_ref)], axis=1).ravel()
-            if tangent:
-                K = K + sp.diags(v.c * v.W)
         if self.T is not None:
             T = self.T
             res, f_ext = T.T @ res, T.T @ f_ext

@@ -211,6 +211,21 @@ def test_matrix_assembly_reuses_the_pattern_arrays():
     assert K.nnz == m._nnz
 
 
+def test_diagonal_added_into_the_assembled_pattern():
+    """``RodMesh.add_diagonal`` (the viscous term of proximal and damped
+    steps) equals ``K + diag(d)`` entry for entry, keeps the assembled
+    pattern and leaves ``K`` as it was."""
+    rod = rollup_rod(5)
+    m = rod.mesh
+    K = assembly_mod.internal_work(m, rod.r0, rod.R0, rod.eps0, rod.C).matrix
+    before = K.toarray()
+    d = np.random.default_rng(4).uniform(1.0, 2.0, m.n_dofs)
+    A = m.add_diagonal(K, d)
+    np.testing.assert_array_equal(A.toarray(), before + np.diag(d))
+    assert np.array_equal(A.indices, m._indices) and np.array_equal(A.indptr, m._indptr)
+    np.testing.assert_array_equal(K.toarray(), before)
+
+
 @pytest.mark.parametrize("contact", [False, True])
 def test_factor_derives_the_pattern_work_once_per_pattern(monkeypatch, contact):
     """``Problem.factor`` keeps what depends on the tangent's sparsity

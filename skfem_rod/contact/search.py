@@ -406,8 +406,9 @@ class NeighbourList:
     def pairs(self, r, reach, find):
         """The kept ``(i, j)``, or new ones from ``find(margin)`` when
         ``r`` moved beyond ``skin`` or ``reach`` grew."""
-        if (self.r is None or r.shape != self.r.shape or reach > self.reach
-                or np.einsum("nc,nc->n", r - self.r, r - self.r).max() > self.skin ** 2):
+        if (self.r is None or r.shape != self.r.shape or not reach <= self.reach
+                or not np.einsum("nc,nc->n", r - self.r, r - self.r).max() <= self.skin ** 2):
+            # (written so that a NaN also finds the pairs anew, as without the list)
             self.i, self.j = find(2.0 * LEBESGUE * self.skin)
             self.r, self.reach = r.copy(), reach
             self.builds += 1
