@@ -236,3 +236,21 @@ def test_neighbour_list_gives_the_search_without_it(scene):
     builds = nl.builds
     search(rod.mesh, r, sl, 1.5 * reach, excl, neighbours=nl)
     assert nl.builds == builds + 1
+
+
+def test_neighbour_list_does_not_hide_a_non_finite_position():
+    """A NaN among the nodes makes the search raise, with the list as
+    without it: the list finds its pairs anew (its move test reads a NaN
+    as a move beyond the skin) instead of searching with stale pairs."""
+    eps = 0.105
+    rod = Rod(hairpin(eps, 0.2, leg=1.0), SEC, 64)
+    sl = slave_points(rod.mesh, 3)
+    reach, excl = 2 * eps + 0.05, np.pi * eps
+    nl = search_mod.NeighbourList(skin=0.5 * eps)
+    assert search(rod.mesh, rod.r0, sl, reach, excl, neighbours=nl).size > 0
+    r = rod.r0.copy()
+    r[5, 0] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        search(rod.mesh, r, sl, reach, excl)
+    with pytest.raises(ValueError, match="finite"):
+        search(rod.mesh, r, sl, reach, excl, neighbours=nl)
