@@ -237,6 +237,7 @@ def main(argv=None):
                    help="another contact option (value as JSON), e.g. curve=\"smooth\"")
     p.add_argument("--out", default=str(HERE))
     a = p.parse_args(argv)
+    os.makedirs(a.out, exist_ok=True)            # before the runs, not after the first
     options, contact = {}, {}
     for target, given in ((options, a.option), (contact, a.contact)):
         for kv in given:
