@@ -46,6 +46,8 @@ from .rotations import (coefficients, cross, hat, expm, logm, tangent, tangent_i
 
 #: local index (scikit-fem dof order 0, 1, 1/3, 2/3) of the reference node
 REF_NODE = 2
+#: the element's other nodes (their spins enter the chart through psi_I)
+NOT_REF = np.array([I for I in range(4) if I != REF_NODE])
 #: largest admitted rotation of a node relative to its element's reference
 PSI_MAX = 0.95 * np.pi
 
@@ -225,7 +227,7 @@ def chart_curvature(loc, ch, g):
     waa = (Rr @ np.einsum("eIij,eIjk->eik", hat(g_rho), hat(rho)) @ RrT
            - hat(np.einsum("eij,ej->ei", Rr, cross(g_rho, rho).sum(axis=1))))
     # the spin rows and columns, the nodes other than a
-    o = np.array([I for I in range(4) if I != a])
+    o = NOT_REF
     h = np.einsum("eIji,eIj->eIi", ch.Tinv[:, o], g6[:, o, 3:])
     HH = hat(np.einsum("eij,eIj->eIi", Rr, h))
     coef = coefficients(loc.psi[:, o], 1)
