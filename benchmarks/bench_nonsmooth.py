@@ -1,10 +1,13 @@
 """The contact solve: Uzawa (the paper's iteration, ``contact_solve="uzawa"``)
 against the generalized Newton on the Alart-Curnier augmented Lagrangian
-(``contact_solve="newton"``, :mod:`skfem_rod.nonsmooth`), on the contact and
-friction scenes of the test suite and the demos.
+(:mod:`skfem_rod.nonsmooth`) with the normal and friction multipliers as
+unknowns (``contact_solve="newton"``) and with the normal ones only, the
+friction ones updated by Uzawa between solves (``"newton_normal"``), on the
+contact and friction scenes of the test suite and the demos.
 
-Scenes (each solved in both modes, the modes alternating repeat after
-repeat in one process so that a change of the machine's load hits both):
+Scenes (each solved in the three modes, the modes in turn, reversed repeat
+after repeat, in one process so that a change of the machine's load hits
+all):
 
 * ``hairpin``: the pressed hairpin of tests/test_contact.py (40 elements,
   frictionless), pressed closed and released in 12 steps (path 0 -> 1 -> 0),
@@ -25,8 +28,8 @@ iterations per step, Uzawa updates (total, and steps that hit
 1e-8; in the generalized Newton / in the plain Newton of the gradient flow,
 which has a viscous term and is the same in both modes), largest
 penetration (units of eps), wall
-time (median over the repeats).  Ratios "newton / uzawa" are of medians of
-the same run.
+time (median over the repeats).  Ratios "newton / uzawa" and
+"newton_normal / uzawa" are of medians of the same run.
 
     python benchmarks/bench_nonsmooth.py [--quick]
 
@@ -44,12 +47,14 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
+import skfem_rod.dynamics as dynamics_mod    # noqa: E402
+import skfem_rod.newton as newton_mod        # noqa: E402
 import skfem_rod.relax as relax_mod          # noqa: E402
 import skfem_rod.solver as solver_mod        # noqa: E402
 from skfem_rod import Rod                    # noqa: E402
 from skfem_rod.options import make_options   # noqa: E402
 
-MODES = ("uzawa", "newton")
+MODES = ("uzawa", "newton_normal", "newton")
 
 
 def two_cycles(h, floor=1e-8):
@@ -69,7 +74,9 @@ class Spy:
         self._orig = {}
 
     def __enter__(self):
-        for mod in (solver_mod, relax_mod):
+        # load steps and Uzawa passes (augmented.step imports newton at the
+        # call), the gradient flow, the damped steps
+        for mod in (newton_mod, relax_mod, dynamics_mod):
             orig = mod.newton
             self._orig[mod] = orig
 
@@ -176,11 +183,15 @@ def table(results):
                          f"{f['steps']} | {f['newton']} | {f['median_step']:g} | {f['uzawa']} | "
                          f"{f['uzawa_limit']} | {f['failed']} | {f['cycles']} ({f['cycles_flow']}) | "
                          f"{f['penetration']:.1e} | {f['wall']:.2f} |")
-    ratios = ["", "| scene | Newton its newton/uzawa | time newton/uzawa |", "|---|---|---|"]
+    ratios = ["", "| scene | Newton its newton/uzawa | time newton/uzawa | "
+                  "Newton its newton_normal/uzawa | time newton_normal/uzawa |",
+              "|---|---|---|---|---|"]
     for name, r in results.items():
-        u, n = r["uzawa"], r["newton"]
+        u, n, nn = r["uzawa"], r["newton"], r["newton_normal"]
         ratios.append(f"| {name} | {n['newton'] / max(u['newton'], 1):.2f} | "
-                      f"{n['wall'] / u['wall']:.2f} |")
+                      f"{n['wall'] / u['wall']:.2f} | "
+                      f"{nn['newton'] / max(u['newton'], 1):.2f} | "
+                      f"{nn['wall'] / u['wall']:.2f} |")
     return head + "\n".join(lines) + "\n" + "\n".join(ratios) + "\n"
 
 

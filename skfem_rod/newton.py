@@ -139,16 +139,17 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         basis), or None.
     border : :class:`Border` (continuation), or None (``lam`` fixed).
 
-    With contact on and ``opts.contact_solve == "newton"`` (no ``border``)
-    the generalized Newton of :mod:`skfem_rod.nonsmooth` solves for the
-    normal multipliers too, with the viscous term of a damped step
+    With contact on and ``opts.contact_solve`` ``"newton"`` or
+    ``"newton_normal"`` (no ``border``) the generalized Newton of
+    :mod:`skfem_rod.nonsmooth` solves for the multipliers too (the normal
+    and friction ones, or the normal ones only), with the viscous term of a damped step
     (``Problem.viscous``) as with any other.
 
     Returns
     -------
     ``(r, R, lam, report)`` with a :class:`Report`; ``report.converged``.
     """
-    if problem.contact is not None and opts.contact_solve == "newton" and border is None:
+    if problem.contact is not None and opts.contact_solve != "uzawa" and border is None:
         from .nonsmooth import contact_newton
         return contact_newton(problem, r, R, lam, opts, prescribed)
     fixed = problem.fixed

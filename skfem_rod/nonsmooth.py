@@ -84,16 +84,26 @@ MEMORY = 1
 class ContactState:
     """Residuals and the generalized Jacobian's contact blocks at an
     evaluation (:func:`contact_blocks`; the blocks None without the
-    Jacobian)."""
+    Jacobian).  The multiplier unknowns are one vector (:func:`unknowns`):
+    the normal ones, then the friction ones of each law in
+    :func:`friction_laws` (3 per slave point); ``active`` marks those that
+    join the linear system (the normal multipliers where the law is active,
+    the friction multipliers of the points in contact), the others are
+    condensed (``-w dlambda = -C``).  ``D`` is the exact ``dC/dlambda``,
+    ``D_reg`` the one solved with (the active rows regularized)."""
     G: np.ndarray
     C: np.ndarray
     K_ly: object
     K_yl: object
-    D: np.ndarray
+    D: object
+    D_reg: object
     active: np.ndarray
     penetration: float
     opened: float
     merit: float
+    #: how far the friction multipliers are from their update, relative to
+    #: the Coulomb bound (the Uzawa loop's ``friction_moved``; 0 without)
+    friction_moved: float = 0.0
 
 
 class Merit(NamedTuple):
@@ -108,26 +118,84 @@ class Merit(NamedTuple):
     first: bool
 
 
+#: the friction multipliers of :class:`~skfem_rod.problem.Multipliers`
+#: per law, with the contact option of its coefficient
+LAWS = (("tangential", "gamma_T", "T"), ("rotational", "gamma_R", "R"))
+
+
+def friction_laws(problem):
+    """The friction laws whose multipliers are unknowns: inside
+    ``Problem.friction_unknowns`` (``contact_solve="newton"``), those with
+    a coefficient above zero, as ``(attribute, output suffix)``; none with
+    ``"newton_normal"`` (the Uzawa loop updates them between solves)."""
+    if not (problem.friction and problem.friction_jacobian):
+        return ()
+    c = problem.contact
+    return tuple((name, X) for name, coef, X in LAWS if getattr(c, coef) > 0)
+
+
+def unknowns(problem):
+    """The multiplier unknowns as one vector (normal, then friction)."""
+    m = problem.multipliers
+    return np.concatenate([m.normal] + [getattr(m, name).ravel()
+                                        for name, _ in friction_laws(problem)])
+
+
+def set_unknowns(problem, x):
+    """The multipliers of ``problem`` from the vector ``x`` of :func:`unknowns`."""
+    m = problem.multipliers
+    ns = m.normal.size
+    m.normal = x[:ns].copy()
+    for k, (name, _) in enumerate(friction_laws(problem)):
+        setattr(m, name, x[ns + 3 * ns * k:ns + 3 * ns * (k + 1)].reshape(ns, 3).copy())
+
+
 def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     """The complementarity residual ``C`` and the blocks ``dC/dy``,
-    ``dG/dlambda`` (in the dof basis), ``dC/dlambda`` (diagonal) at the
-    evaluation ``ev`` of ``problem`` (multipliers: ``problem.multipliers``);
-    the merit is ``|(G_free, weight C)|`` (weight 0 when polishing)."""
+    ``dG/dlambda`` (in the dof basis), ``dC/dlambda`` at the evaluation
+    ``ev`` of ``problem`` (multipliers: ``problem.multipliers``, ordered as
+    :func:`unknowns`); the merit is ``|(G_free, weight C)|`` (weight 0 when
+    polishing).
+
+    Friction (docs/contact-solve.md): ``C_X = w (c_X - lambda_X)`` per slave
+    point, ``c_X`` the Uzawa update of the law's multiplier (the force
+    pulled back to the last converged state, ``multiplier_T`` /
+    ``multiplier_R`` of the friction output); ``-w lambda_X`` at points
+    without a normal force."""
     c, m = problem.contact, problem.multipliers
+    laws = friction_laws(problem)
     ns = m.normal.size
-    n = problem.mesh.n_dofs
+    # the pairs live on the contact curve (the rod's centreline, or the
+    # smooth curve of contact/curve.py, whose dofs map to the rod's)
+    cc = problem.contact_curve
+    cmesh = problem.mesh if cc is None else cc.mesh
+    n = cmesh.n_dofs
     w_all = problem.slaves.w.ravel()
     ce = ev.contact
     pairs = ce.pairs
     lam = m.normal
     fN = np.zeros(ns)
     fN[pairs.slave] = ce.fN
-    C = w_all * (fN - lam)
+    Cs = [w_all * (fN - lam)]
+    fr = ce.friction
+    moved = 0.0
+    for name, X in laws:
+        update = np.zeros((ns, 3))
+        update[fr.slave] = getattr(fr, "multiplier_" + X)
+        diff = update - getattr(m, name)
+        Cs.append((w_all[:, None] * diff).ravel())
+        if fr.fN.size:
+            coef = c.gamma_T if X == "T" else c.gamma_R
+            moved = max(moved, float(np.abs(diff).max()) / (coef * fr.fN.max()))
+    C = np.concatenate(Cs)
     d = gap(pairs.distance, c.radius)
     mu = c.penalty / m.penalty_scale[pairs.slave]
     act = (d + mu * lam[pairs.slave]) > 0
-    active = np.zeros(ns, bool)
+    active = np.zeros(C.size, bool)
     active[pairs.slave[act]] = True
+    fslaves = fr.slave if laws else np.zeros(0, int)
+    for k in range(len(laws)):
+        active[(ns + 3 * ns * k + 3 * fslaves[:, None] + np.arange(3)).ravel()] = True
     pen = float(d.max(initial=0.0))
     opened = float(np.max(-d[ce.fN > 0], initial=0.0))
     G = ev.residual
@@ -136,7 +204,7 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     Cw = weight * C
     merit = float(np.sqrt(problem.residual_norm(ev) ** 2 + np.dot(Cw, Cw)))
     if not jacobian:
-        return ContactState(G, C, None, None, None, active, pen, opened, merit)
+        return ContactState(G, C, None, None, None, None, active, pen, opened, merit, moved)
     # dl = delta l over the 24 position dofs of the pair (assembly.py)
     from .element import shape_functions
     k = np.flatnonzero(act)
@@ -144,27 +212,82 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     Nm, _, _ = shape_functions(pairs.m_xi[k])
     P = np.concatenate([Ns.T, -Nm.T], axis=1)                       # (a, 8)
     b = (P[:, :, None] * pairs.normal[k][:, None, :]).reshape(k.size, 24)
-    nodes = np.concatenate([problem.mesh.nodes[pairs.s_elem[k]],
-                            problem.mesh.nodes[pairs.m_elem[k]]], axis=1)
+    nodes = np.concatenate([cmesh.nodes[pairs.s_elem[k]],
+                            cmesh.nodes[pairs.m_elem[k]]], axis=1)
     dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(k.size, 24)
     sl = pairs.slave[k]
     w = pairs.weight[k]
+    nl = C.size
     cols = np.repeat(sl, 24)
-    K_yl = sp.coo_matrix(((-w[:, None] * b).ravel(), (dofs.ravel(), cols)), shape=(n, ns))
-    K_ly = sp.coo_matrix(((-(w / mu[k])[:, None] * b).ravel(), (cols, dofs.ravel())),
-                         shape=(ns, n))
-    fr = ce.friction
+    yl = [((-w[:, None] * b).ravel(), dofs.ravel(), cols)]
+    ly = [((-(w / mu[k])[:, None] * b).ravel(), cols, dofs.ravel())]
+    # dC/dlambda: -w where the normal law is inactive (0 where active),
+    # -w I for the friction multipliers of points out of contact
+    diag = np.where(active[:ns], 0.0, -w_all)
+    dd = [(np.concatenate([diag] + [np.repeat(-w_all, 3)] * len(laws)),
+           np.arange(nl), np.arange(nl))]
+    # the part of dC/dlambda the active rows are regularized with
+    # (-REGULARIZATION w times the update's own derivative dc/dlambda)
+    reg = [(np.where(active[:ns], -REGULARIZATION * w_all, 0.0), np.arange(ns), np.arange(ns))]
     if fr is not None and fr.dresidual_dfN is not None and fr.index.size:
         # friction pairs are the pairs with f_N > 0 (all active)
         fd, fv = fr.dresidual_dfN
-        K_yl = K_yl + sp.coo_matrix((fv.ravel(), (fd.ravel(), np.repeat(fr.slave, 48))),
-                                    shape=(n, ns))
-    K_yl, K_ly = K_yl.tocsc(), K_ly.tocsr()
+        yl.append((fv.ravel(), fd.ravel(), np.repeat(fr.slave, 48)))
+    if laws and fr.index.size:
+        J = fr.jacobian
+        if J is None:
+            raise RuntimeError("the friction output has no multiplier Jacobian: evaluate "
+                               "inside Problem.friction_unknowns()")
+        wf = w_all[fr.slave]
+        ar3 = np.arange(3)
+        for kk, (name, X) in enumerate(laws):
+            base = ns + 3 * ns * kk + 3 * fr.slave                  # (mf,)
+            lrow = base[:, None] + ar3                              # (mf, 3)
+            rows_X = wf[:, None, None] * getattr(J, "rows_" + X)    # (mf, 3, 48)
+            ly.append((rows_X.ravel(), np.repeat(lrow.ravel(), 48),
+                       np.tile(J.dofs, (1, 3)).ravel()))
+            cols_X = getattr(J, "cols_" + X)                        # (mf, 48, 3)
+            yl.append((cols_X.ravel(), np.repeat(J.dofs.ravel(), 3),
+                       np.tile(lrow, (1, 48)).ravel()))
+            own = wf[:, None, None] * getattr(J, "self_" + X)       # (mf, 3, 3)
+            # dC/dlambda = w (dc/dlambda - I): the -w I is in dd already
+            dd.append((own.ravel(), np.repeat(lrow, 3, axis=1).ravel(),
+                       np.tile(lrow, (1, 3)).ravel()))
+            reg.append(((-REGULARIZATION * own).ravel(), np.repeat(lrow, 3, axis=1).ravel(),
+                        np.tile(lrow, (1, 3)).ravel()))
+            # through the Coulomb radius: dc/df_N, df_N/dlambda_N = 1 (active)
+            dd.append(((wf[:, None] * getattr(J, "normal_" + X)).ravel(), lrow.ravel(),
+                       np.repeat(fr.slave, 3)))
+
+    def coo(parts, shape):
+        v, i, j = (np.concatenate(a) for a in zip(*parts))
+        return sp.coo_matrix((v, (i, j)), shape=shape)
+
+    K_yl = coo(yl, (n, nl)).tocsc()
+    K_ly = coo(ly, (nl, n)).tocsr()
+    D = coo(dd, (nl, nl)).tocsr()
+    D_reg = (D + coo(reg, (nl, nl))).tocsr()
+    if cc is not None:
+        K_yl, K_ly = (cc.TT @ K_yl).tocsc(), (K_ly @ cc.T).tocsr()
     if problem.T is not None:
         K_yl = problem.T.T @ K_yl
         K_ly = K_ly @ problem.T
-    D = np.where(active, -REGULARIZATION * w_all, -w_all)
-    return ContactState(G, C, K_ly, K_yl, D, active, pen, opened, merit)
+    return ContactState(G, C, K_ly, K_yl, D, D_reg, active, pen, opened, merit, moved)
+
+
+def contact_states(problem, ev, cs):
+    """Per slave point, its state at the evaluation ``ev``: the normal law
+    active or not, and the state (open / stick / slip) of each friction
+    law; one integer row per slave (what :attr:`Report.switches` counts)."""
+    ns = problem.multipliers.normal.size
+    cols = [cs.active[:ns].astype(int)]
+    fr = ev.contact.friction
+    if fr is not None:
+        for st in (fr.state_T, fr.state_R):
+            full = np.zeros(ns, int)
+            full[fr.slave] = st
+            cols.append(full)
+    return np.stack(cols, axis=1)
 
 
 def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
@@ -183,15 +306,18 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
     kill = fixed[rows] | fixed[cols]
     K.data[kill] = 0.0
     K.data[kill & (rows == cols)] = 1.0
-    # the inactive rows are -w dlambda = -C alone (no dy, no column in G):
-    # dlambda = -lambda there; the active multipliers join the system
+    # the inactive rows are -w dlambda = -C alone (no dy, no column in G,
+    # no coupling): dlambda = -lambda there; the active multipliers join
+    # the system
     act = np.flatnonzero(cs.active)
-    dl = -cs.C / cs.D
+    out = ~cs.active
+    dl = np.zeros_like(cs.C)
+    dl[out] = -cs.C[out] / cs.D.diagonal()[out]
     free = sp.diags(np.where(fixed, 0.0, 1.0))
     K_ly_act = cs.K_ly.tocsr()[act]
     K_yl = free @ cs.K_yl.tocsc()[:, act]
     K_ly = K_ly_act @ free
-    A = sp.bmat([[K, K_yl], [K_ly, sp.diags(cs.D[act])]], format="csc")
+    A = sp.bmat([[K, K_yl], [K_ly, cs.D_reg[act][:, act]]], format="csc")
     rhs_y = -cs.G - ev.tangent @ remaining
     rhs_y[fixed] = 0.0
     rhs_l = -cs.C[act] - K_ly_act @ remaining
@@ -212,6 +338,16 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
 
 
 def contact_newton(problem, r, R, lam, opts, prescribed=None):
+    """See :func:`_contact_newton`; with ``contact_solve="newton"`` the
+    friction multipliers are unknowns too (the evaluations inside
+    ``Problem.friction_unknowns`` carry their Jacobian)."""
+    if opts.contact_solve == "newton_normal":
+        return _contact_newton(problem, r, R, lam, opts, prescribed)
+    with problem.friction_unknowns():
+        return _contact_newton(problem, r, R, lam, opts, prescribed)
+
+
+def _contact_newton(problem, r, R, lam, opts, prescribed=None):
     """Generalized Newton on ``(y, lambda_N)`` at load factor ``lam`` from
     ``(r, R)`` and the multipliers in ``problem.multipliers`` (updated in
     place).  Same call and return as :func:`skfem_rod.newton.newton`
@@ -221,7 +357,8 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
     held (the contact tolerances met; None if never), ``report.step_lengths``
     the line search's ``alpha`` per iteration."""
     c, m = problem.contact, problem.multipliers
-    history, complementarity, alphas, merits = [], [], [], []
+    history, complementarity, alphas, merits, switches = [], [], [], [], []
+    states = None
     tol = c.tolerance * c.radius
     last_update, polish, polished_from, escapes = np.inf, False, None, 0
     remaining, ev, why = start(problem, r, R, lam, prescribed)
@@ -235,13 +372,18 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
         rn = problem.residual_norm(ev)
         history.append(rn)
         complementarity.append(float(np.linalg.norm(cs.C)))
+        now = contact_states(problem, ev, cs)
+        switches.append(0 if states is None else int(np.any(now != states, axis=1).sum()))
+        states = now
         merits.append(cs.merit)
-        tolerances = cs.penetration <= tol and cs.opened <= tol
+        tolerances = (cs.penetration <= tol and cs.opened <= tol
+                      and cs.friction_moved <= c.friction_tolerance)
         if not np.any(remaining) and (tolerances or polish) and (
                 rn <= opts.rtol * scale or last_update <= opts.increment_tol):
             return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev,
                                      complementarity=complementarity,
-                                     polished_from=polished_from, step_lengths=alphas)
+                                     polished_from=polished_from, step_lengths=alphas,
+                                     switches=switches)
         if it == opts.max_iterations:
             break
         # the contact tolerances hold: the multipliers are kept, Newton
@@ -276,7 +418,8 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
             return _fail(r, R, lam, history, it + 1,
                          f"no admissible update after {opts.max_backtracks} halvings: {why}",
                          ev)
-        r, R, ev, m.normal = accepted
+        r, R, ev, x = accepted
+        set_unknowns(problem, x)
         if ev.tangent is None:
             ev = problem.evaluate(r, R, lam)
         alphas.append(alpha)
@@ -310,8 +453,7 @@ def line_search(problem, at, inc, merit, opts):
     update can raise the residual, and the next one converges); otherwise
     the lowest trial below the reference, else none.
     """
-    m = problem.multipliers
-    lam0 = m.normal
+    lam0 = unknowns(problem)
     r, R, lam = at
     dy, dl = inc
     reference, weight = merit.reference, merit.weight
@@ -330,7 +472,7 @@ def line_search(problem, at, inc, merit, opts):
                 why = "the update would carry a strand through another"
                 alpha *= 0.5
                 continue
-            m.normal = lam_t
+            set_unknowns(problem, lam_t)
             # the first trial is usually taken: its tangent is the next
             # iteration's; halved trials get theirs once taken
             ev_t = problem.evaluate(r_t, R_t, lam, tangent=alpha == alpha0)
@@ -346,7 +488,7 @@ def line_search(problem, at, inc, merit, opts):
             alpha *= 0.5
             continue
         finally:
-            m.normal = lam0
+            set_unknowns(problem, lam0)
         if not np.isfinite(mt):
             why = "non-finite residual"
         else:

@@ -157,11 +157,12 @@ class SolverOptions:
         minimum of the energy along it (docs/theory.md).
     contact_solve : with contact on, ``"uzawa"`` (the paper's iteration:
         multipliers updated after each converged Newton solve,
-        :mod:`skfem_rod.augmented`) or ``"newton"`` (generalized Newton on
-        the Alart-Curnier augmented Lagrangian, the normal multipliers
-        unknowns beside the dofs, merit line search; the friction
-        multipliers are still updated between Newton solves:
-        :mod:`skfem_rod.nonsmooth`, docs/contact-solve.md).
+        :mod:`skfem_rod.augmented`), ``"newton"`` (generalized Newton on
+        the Alart-Curnier augmented Lagrangian, the normal and friction
+        multipliers unknowns beside the dofs, merit line search:
+        :mod:`skfem_rod.nonsmooth`, docs/contact-solve.md) or
+        ``"newton_normal"`` (the same with the normal multipliers only; the
+        friction multipliers updated between Newton solves by Uzawa).
     """
     rtol: float = _pos(1e-10, "residual tolerance on the free dofs (relative to the loads "
                               "on them and the forces the supports take up)")
@@ -207,10 +208,11 @@ class SolverOptions:
                                                 "positive)")
     contact_solve: str = _opt("uzawa", "choice", "contact solve: Uzawa updates of the "
                                                  "multipliers between Newton solves (the "
-                                                 "paper), or a generalized Newton on the "
-                                                 "normal multipliers too "
-                                                 "(skfem_rod.nonsmooth)",
-                              choices=("uzawa", "newton"))
+                                                 "paper), a generalized Newton on the "
+                                                 "normal and friction multipliers too "
+                                                 "(skfem_rod.nonsmooth), or on the normal "
+                                                 "ones only (friction by Uzawa)",
+                              choices=("uzawa", "newton", "newton_normal"))
     dynamics: bool = _opt(False, "boolean", "where a load step fails, implicit "
                                             "pseudo-dynamics (damped backward-Euler steps, "
                                             "adaptive pseudo-time step) to the next "

@@ -154,6 +154,9 @@ class Problem:
         self.timers = defaultdict(float)
         self.calls = defaultdict(int)
         self.viscous = None
+        #: the friction output carries the multipliers' Jacobian (inside
+        #: :meth:`friction_unknowns`: the generalized Newton)
+        self.friction_jacobian = False
         #: what Problem.factor derives from the tangent's pattern, one per
         #: mask of held dofs (the supports', and the position correction's
         #: with every spin held: Newton alternates them)
@@ -234,6 +237,17 @@ class Problem:
             yield self
         finally:
             self.viscous = None
+
+    @contextmanager
+    def friction_unknowns(self):
+        """Evaluations inside the ``with`` block compute the Jacobian of the
+        friction multipliers' update (the generalized Newton solves for
+        them, :mod:`skfem_rod.nonsmooth`); off after."""
+        self.friction_jacobian = True
+        try:
+            yield self
+        finally:
+            self.friction_jacobian = False
 
     def push(self, r, R, mode, size):
         """``(r, R)`` moved along ``mode`` (dof basis; e.g. an unstable mode)
@@ -378,7 +392,8 @@ class Problem:
             state = SlipState(r, R, r_n, R_n, m.tangential, m.rotational)
             ff, Kf, fr = friction_work(mesh, state, pairs, NormalLaw(m.normal, mu, c.radius),
                                        params, tangent=tangent, K_normal=K,
-                                       cache=self.contact_patterns.friction)
+                                       cache=self.contact_patterns.friction,
+                                       multiplier_jacobian=self.friction_jacobian)
             force = force + ff
             if tangent:
                 K = Kf                                  # includes the normal tangent
@@ -645,6 +660,9 @@ class Report:
     complementarity: list = None
     polished_from: int = None
     step_lengths: list = None
+    #: points whose contact state (normal law open/active, friction
+    #: stick/slip) changed from the last iterate, per iteration (0 first)
+    switches: list = None
     penalty_scale: float = 1.0
     # load stepping and gradient flow
     flow_steps: int = 0

@@ -139,3 +139,83 @@ def test_rolling_is_not_slip():
     pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
     on_upper = pairs.s[out.index] > 1.0 + np.pi * 0.1 + 0.2
     assert np.allclose(out.slip_T[on_upper], [v, 0, 0], atol=1e-9 * v)
+
+
+@pytest.mark.parametrize("rotational", ["twist", "circumferential", "pivot"])
+@pytest.mark.parametrize("push_forward", [True, False])
+@pytest.mark.parametrize("regime", ["slip", "stick"])
+def test_multiplier_jacobian_matches_finite_differences(regime, push_forward, rotational):
+    """The Jacobian of the friction multipliers' update ``c = Lam_s^T f``
+    (``FrictionOutput.jacobian``, the rows of the generalized Newton,
+    skfem_rod.nonsmooth) against central differences: ``dc/dy``,
+    ``dc/dlambda`` of both laws, ``dc/df_N`` (through the normal
+    multipliers), and the residual's columns ``dG/dlambda``."""
+    rng, rod, r, R, r_n, R_n, sl, *lams = _setup(1)
+    prm = REGIMES[regime]
+    p = FrictionParams(prm["gamma_T"], prm["gamma_R"], prm["mu_T"], prm["mu_R"],
+                       push_forward=push_forward, rotational=rotational)
+
+    def run(r, R, lams, tangent=False):
+        pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+        lam_N, lam_T, lam_R = lams
+        return friction_work(rod.mesh, SlipState(r, R, r_n, R_n, lam_T, lam_R), pairs,
+                             NormalLaw(lam_N, prm["mu_N"], EPS), p, tangent,
+                             multiplier_jacobian=tangent)
+
+    f, K, out = run(r, R, lams, tangent=True)
+    J = out.jacobian
+    m = out.index.size
+    assert m > 20 and J.rows_T.shape == (m, 3, 48) and J.cols_R.shape == (m, 48, 3)
+    # without the option, no Jacobian is computed
+    pairs = search(rod.mesh, r, sl, reach=2 * EPS + 0.05, exclusion=np.pi * EPS)
+    plain = friction_work(rod.mesh, SlipState(r, R, r_n, R_n, *lams[1:]), pairs,
+                          NormalLaw(lams[0], prm["mu_N"], EPS), p, True)[2]
+    assert plain.jacobian is None
+    h = 1e-7
+
+    def close(fd, an, what):
+        err = np.abs(fd - an).max()
+        scale = max(np.abs(fd).max(), np.abs(an).max())
+        # a saturated 1D law (slip about one axis) has dc/dlambda = 0: the
+        # difference is round-off there
+        assert err <= 1e-6 * scale or err <= 1e-9, (what, err, scale)
+
+    # d c / d y
+    d = rng.normal(size=rod.mesh.n_dofs)
+    d.reshape(-1, 6)[:, 3:] *= 0.3
+
+    def shifted(t):
+        dd = t * d.reshape(-1, 6)
+        return r + dd[:, :3], expm(dd[:, 3:]) @ R
+
+    op, om = run(*shifted(h), lams)[2], run(*shifted(-h), lams)[2]
+    assert np.array_equal(op.slave, out.slave) and np.array_equal(om.slave, out.slave)
+    for X in ("T", "R"):
+        fd = (getattr(op, "multiplier_" + X) - getattr(om, "multiplier_" + X)) / (2 * h)
+        close(fd, np.einsum("mij,mj->mi", getattr(J, "rows_" + X), d[J.dofs]), "dc/dy " + X)
+    # d c / d lambda and d G / d lambda, each law: c is f / mu, so the
+    # round-off of f is amplified by 1 / mu (1e3 here): a larger step
+    # (the error falls as 1 / h down to 1e-3, measured)
+    h = 1e-4
+    for k, X in ((1, "T"), (2, "R")):
+        dl = 0.003 * rng.normal(size=lams[k].shape)
+        lp, lm = list(lams), list(lams)
+        lp[k], lm[k] = lams[k] + h * dl, lams[k] - h * dl
+        fp, _, op = run(r, R, lp)
+        fm, _, om = run(r, R, lm)
+        for Y in ("T", "R"):
+            fd = (getattr(op, "multiplier_" + Y) - getattr(om, "multiplier_" + Y)) / (2 * h)
+            an = (np.einsum("mij,mj->mi", getattr(J, "self_" + Y), dl[out.slave]) if X == Y
+                  else np.zeros_like(fd))
+            close(fd, an, f"dc_{Y}/dlambda_{X}")
+        cols = np.einsum("mak,mk->ma", getattr(J, "cols_" + X), dl[out.slave])
+        an = np.bincount(J.dofs.ravel(), weights=cols.ravel(), minlength=rod.mesh.n_dofs)
+        close((fp - fm) / (2 * h), an, "dG/dlambda " + X)
+    # d c / d f_N, through the normal multipliers (d f_N / d lambda_N = 1)
+    dn = 0.003 * rng.normal(size=lams[0].shape)
+    lp, lm = list(lams), list(lams)
+    lp[0], lm[0] = lams[0] + h * dn, lams[0] - h * dn
+    op, om = run(r, R, lp)[2], run(r, R, lm)[2]
+    for X in ("T", "R"):
+        fd = (getattr(op, "multiplier_" + X) - getattr(om, "multiplier_" + X)) / (2 * h)
+        close(fd, getattr(J, "normal_" + X) * dn[out.slave][:, None], "dc/df_N " + X)

@@ -20,7 +20,7 @@ from test_contact import SEC, hairpin
 EPS = 0.105
 
 
-def _problem(seed, friction):
+def _problem(seed, friction, curve="elements"):
     """A hairpin of thick strands (eps = 0.105, legs 0.2 apart) in a seeded
     random state near contact, with multipliers that leave some slave
     points open and some active, friction (``friction`` = "stick" or
@@ -33,7 +33,7 @@ def _problem(seed, friction):
         kw = dict(gamma_T=0.3, gamma_R=0.01, mu_T=1e-3, mu_R=1e-3)
     elif friction == "stick":
         kw = dict(gamma_T=5.0, gamma_R=2.0, mu_T=1e-1, mu_R=1e-1)
-    rod.enable_contact(radius=EPS, penalty=1e-3, **kw)
+    rod.enable_contact(radius=EPS, penalty=1e-3, curve=curve, **kw)
     p = Problem(rod)
     nn = rod.mesh.n_nodes
     r_n = rod.r0 + 0.002 * rng.normal(size=(nn, 3))
@@ -50,58 +50,86 @@ def _problem(seed, friction):
     return rng, p, r, R
 
 
-def _residuals(p, r, R, lam_N):
-    saved = p.multipliers.normal
-    p.multipliers.normal = lam_N
+def _residuals(p, r, R, lam):
+    """``(G, C)`` at ``(r, R)`` and the multiplier unknowns ``lam``
+    (normal, then friction: ``nonsmooth.unknowns``)."""
+    saved = nonsmooth.unknowns(p)
+    nonsmooth.set_unknowns(p, lam)
     try:
         ev = p.evaluate(r, R, 0.0, tangent=False)
         cs = nonsmooth.contact_blocks(p, ev, jacobian=False)
     finally:
-        p.multipliers.normal = saved
+        nonsmooth.set_unknowns(p, saved)
     return cs.G, cs.C
 
 
+@pytest.mark.parametrize("curve", ["elements", "smooth"])
 @pytest.mark.parametrize("friction", [None, "stick", "slip"])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_generalized_jacobian_matches_finite_differences(seed, friction):
+def test_generalized_jacobian_matches_finite_differences(seed, friction, curve):
     """``[[K, dG/dlambda], [dC/dy, dC/dlambda]]`` times a random direction
     equals the central difference of ``(G, C)`` (away from the kinks: the
-    generalized Jacobian is the classical one on each branch)."""
-    rng, p, r, R = _problem(seed, friction)
+    generalized Jacobian is the classical one on each branch), on the
+    centreline and on the smooth contact curve (whose dofs map to the
+    rod's)."""
+    rng, p, r, R = _problem(seed, friction, curve)
+    with p.friction_unknowns():         # contact_solve="newton"
+        _check_jacobian(rng, p, r, R, friction)
+
+
+def _check_jacobian(rng, p, r, R, friction):
     ev = p.evaluate(r, R, 0.0)
     cs = nonsmooth.contact_blocks(p, ev)
-    ns = cs.C.size
+    ns = p.multipliers.normal.size
+    lam = nonsmooth.unknowns(p)
+    # the normal multipliers, then 3 per slave point for each friction law
+    assert cs.C.size == lam.size == ns * (7 if friction else 1)
     # both branches of the normal law are present
-    assert 5 < cs.active.sum() < ns - 5
+    assert 5 < cs.active[:ns].sum() < ns - 5
     if friction:
         fr = ev.contact.friction
         want = law.SLIP if friction == "slip" else law.STICK
         for state in (fr.state_T, fr.state_R):
             assert (state == want).mean() > 0.5
+        # the friction rows of the points in contact join the system
+        assert cs.active[ns:].sum() == 6 * fr.slave.size > 0
     dy = rng.normal(size=p.mesh.n_dofs)
     dy.reshape(-1, 6)[:, 3:] *= 0.3
-    dl = 0.01 * rng.normal(size=ns)
+    dl = 0.01 * rng.normal(size=lam.size)
+    dl[ns:] *= 0.3
     h = 1e-7
-    plus = _residuals(p, *p.update(r, R, dy, h), p.multipliers.normal + h * dl)
-    minus = _residuals(p, *p.update(r, R, dy, -h), p.multipliers.normal - h * dl)
+    plus = _residuals(p, *p.update(r, R, dy, h), lam + h * dl)
+    minus = _residuals(p, *p.update(r, R, dy, -h), lam - h * dl)
     fd_G = (plus[0] - minus[0]) / (2 * h)
     fd_C = (plus[1] - minus[1]) / (2 * h)
     # the exact generalized Jacobian (no regularization of the active rows)
-    D = np.where(cs.active, 0.0, -p.slaves.w.ravel())
     J_G = ev.tangent @ dy + cs.K_yl @ dl
-    J_C = cs.K_ly @ dy + D * dl
+    J_C = cs.K_ly @ dy + cs.D @ dl
     assert np.abs(fd_G - J_G).max() <= 1e-6 * np.abs(fd_G).max()
     assert np.abs(fd_C - J_C).max() <= 1e-6 * np.abs(fd_C).max()
+    # each block on its own: the normal multipliers, the friction
+    # multipliers (a wrong block would not hide behind another).  G and C
+    # are piecewise linear in the normal multipliers (the radius of the
+    # Coulomb ball too) and smooth in the friction ones (to 1e-14 at
+    # these steps, measured): steps large enough
+    # to keep the round-off of G's internal forces out
+    parts = [(slice(0, ns), 1e-2)]
+    if friction:        # tangential, then rotational
+        parts += [(slice(ns, 4 * ns), 1e-2), (slice(4 * ns, None), 1e-2)]
+    for part, hl in parts:
+        e = np.zeros_like(dl)
+        e[part] = dl[part]
+        pl, mi = _residuals(p, r, R, lam + hl * e), _residuals(p, r, R, lam - hl * e)
+        for k, J in enumerate((cs.K_yl @ e, cs.D @ e)):
+            fd = (pl[k] - mi[k]) / (2 * hl)
+            # (G does not depend on a rotational multiplier that slips:
+            # the couple of a saturated 1D law is gamma_R f_N)
+            assert np.abs(fd - J).max() <= 1e-6 * max(np.abs(fd).max(), np.abs(J).max(),
+                                                      1e-12)
     if friction:
-        # the friction's dependence on f_N (Coulomb radius) is in dG/dlambda
-        # (without it the difference would not match in slip); G is
-        # piecewise linear in lambda (f_N = d / mu + lambda where active, and
-        # the radius mu gamma f_N of the ball enters linearly in slip), so a
-        # larger step keeps round-off out
-        hl = 1e-2
-        fd_l = (_residuals(p, r, R, p.multipliers.normal + hl * dl)[0]
-                - _residuals(p, r, R, p.multipliers.normal - hl * dl)[0]) / (2 * hl)
-        assert np.abs(fd_l - cs.K_yl @ dl).max() <= 1e-6 * np.abs(fd_l).max()
+        # without the friction multipliers' rows the difference would not
+        # match: their Jacobian is not the identity's
+        assert np.abs(cs.K_ly[ns:] @ dy).max() > 1e-3 * np.abs(fd_C[ns:]).max()
 
 
 def _pressed(mode, n_steps=12, tolerance=1e-7):
@@ -149,7 +177,8 @@ def _histories(rod, mode, monkeypatch, **solve):
 def _check_quadratic(reports, floor):
     """Converged solves: no residual history 2-cycles; from the iterate
     after the last shortened step (the line search's
-    global phase ends there) to the round-off ``floor`` (absolute) at most 6
+    global phase ends there) and the last change of the contact states
+    (semi-smooth Newton is Newton once they are settled) to the round-off ``floor`` (absolute) at most 6
     iterations (a linear rate of 0.1 needs 8 for 8 decades); and a
     superlinear step among them: ``log(r_{k+1}/s) / log(r_k/s) >= 1.5``
     with ``s`` the largest residual of the solve (or, from ``s`` itself, a
@@ -167,12 +196,19 @@ def _check_quadratic(reports, floor):
             continue
         h = np.asarray(rep.history)
         assert not two_cycles(h, floor), h
-        below = np.flatnonzero(h <= floor)
+        # (the first entry is the start, before a step's prescribed motion:
+        # the last step's equilibrium, at the floor when no Uzawa pass
+        # follows; the floor that counts is the one the solve reaches)
+        below = np.flatnonzero(h[1:] <= floor) + 1
         k = below[0] if below.size else h.size - 1
         # the local phase: from the last shortened step on (before it the
         # line search globalizes, the active set settles)
-        short = [j for j, a in enumerate(rep.step_lengths[:k]) if a < 1]
-        top = short[-1] + 1 if short else 0
+        short = [j + 1 for j, a in enumerate(rep.step_lengths[:k]) if a < 1]
+        # ... and the iterate at which the contact states last changed
+        # (normal law, stick/slip: the semi-smooth Newton's active set),
+        # when the friction multipliers are unknowns too
+        short += [j for j, n in enumerate(rep.switches[:k + 1]) if n]
+        top = max(short, default=0)
         if k == top:
             continue
         s = h.max()
@@ -210,7 +246,19 @@ def test_rotational_friction_scene_obeys_coulomb_and_converges_fast(monkeypatch)
     coulomb_checks(res, 0.0, rf.EPS)
     for st in res.steps[1:]:
         assert st.contact.penetration <= 1e-3 * rf.EPS
+        # the friction multipliers converge inside the Newton solve: no
+        # Uzawa update (14 over the 8 steps with them updated between
+        # solves, contact_solve="newton_normal")
+        assert st.contact.uzawa == 0
     assert _check_quadratic(reps, 1e-8) >= 5
+    # the same states as with the friction multipliers updated between
+    # the solves, to the friction tolerance: 3e-9 measured, eps = 0.02
+    rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+    other = rod.solve(n_steps=8, contact_solve="newton_normal")
+    assert other.converged
+    assert sum(st.contact.uzawa for st in other.steps[1:]) > 0
+    for a, b in zip(res.steps, other.steps):
+        assert np.abs(a.r - b.r).max() <= 1e-6 * rf.EPS
 
 
 @pytest.mark.slow
@@ -230,7 +278,10 @@ def test_monotone_line_search_stops_the_stick_slip_two_cycle(monkeypatch):
         monkeypatch.setattr(nonsmooth, "POLISH_BELOW", 1e-6)
         monkeypatch.setattr(nonsmooth, "ESCAPES", 0)
         rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
-        res, reps = _histories(rod, "newton", monkeypatch, n_steps=8)
+        # the friction multipliers updated between the solves (the variant
+        # in which the cycle was found; with them as unknowns the scene
+        # does not cycle with either test)
+        res, reps = _histories(rod, "newton_normal", monkeypatch, n_steps=8)
         assert res.converged, res.message
         found[memory] = sum(bool(two_cycles(r.history, 1e-8)) for r in reps)
         monkeypatch.undo()

@@ -54,7 +54,8 @@ import scipy.sparse as sp
 from ..rotations import hat, tangent_inv
 import skfem_rod.contact.friction as law
 from .assembly import PatternCache
-from .slip import NC, NM, pulled_back, pushed, slip_kinematics
+from .slip import DS, NC, NM, S, M, pulled_back, pushed, slip_kinematics
+from .slip import D as DM
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,34 @@ class FrictionOutput:
     #: nonsmooth Newton (:mod:`skfem_rod.nonsmooth`) couples it to the
     #: normal multipliers (``d f_N / d lambda_N = 1`` where active).
     dresidual_dfN: tuple = None
+    #: :class:`MultiplierJacobian` (with ``tangent`` and
+    #: ``multiplier_jacobian``): the carried multipliers as unknowns of the
+    #: generalized Newton (:mod:`skfem_rod.nonsmooth`)
+    jacobian: object = None
+
+
+class MultiplierJacobian(NamedTuple):
+    """Derivatives of the friction multipliers' Uzawa update per active
+    pair, ``c = Lam_s^T f`` (``f`` without ``push_forward``): the
+    ``multiplier_T`` / ``multiplier_R`` of :class:`FrictionOutput`, and of
+    the residual with respect to the carried multipliers.  Law ``X`` is
+    ``T`` (tangential) or ``R`` (rotational); ``dofs`` ``(m, 48)`` are the
+    spatial dofs of the pair's 8 nodes (slave element, then master).
+
+    rows_X : ``(m, 3, 48)`` ``dc_X / dy`` (spins: spatial virtual spins).
+    self_X : ``(m, 3, 3)`` ``dc_X / dlambda_X``.
+    normal_X : ``(m, 3)`` ``dc_X / df_N`` (the Coulomb radius).
+    cols_X : ``(m, 48, 3)`` ``dG / dlambda_X`` (``G`` the friction residual).
+    """
+    dofs: np.ndarray
+    rows_T: np.ndarray
+    rows_R: np.ndarray
+    self_T: np.ndarray
+    self_R: np.ndarray
+    normal_T: np.ndarray
+    normal_R: np.ndarray
+    cols_T: np.ndarray
+    cols_R: np.ndarray
 
 
 class _Forces(NamedTuple):
@@ -134,6 +163,8 @@ class _Forces(NamedTuple):
     resR: law.FrictionResult
     DF: np.ndarray           # (m, 3, NC) or None
     Dcouple: np.ndarray      # (m, 3, NC), 0 or None
+    DfT: np.ndarray = None   # (m, 3, NC): the laws' forces linearized (None without)
+    DfR: np.ndarray = None
 
 
 def _outer(a, c):
@@ -197,8 +228,8 @@ def _forces(kin, lam_T, lam_R, fN, dfN, p, linearize):
         DfRs = dot(fR, kin.Dt) + dot(t, DfR)
         DF = (DfT + _outer(b, DfRs / rho[:, None] - (fRs / rho ** 2)[:, None] * Drho)
               + (fRs / rho)[:, None, None] * kin.Db)
-        return _Forces(F, fT, fR, couple, gT, gR, resT, resR, DF, 0.0)
-    return _Forces(F, fT, fR, couple, gT, gR, resT, resR, DfT, DfR)
+        return _Forces(F, fT, fR, couple, gT, gR, resT, resR, DF, 0.0, DfT, DfR)
+    return _Forces(F, fT, fR, couple, gT, gR, resT, resR, DfT, DfR, DfT, DfR)
 
 
 def _residual(n, kin, w, F, couple):
@@ -366,7 +397,7 @@ def _normal_positions(K_normal, indices, indptr, n, cache):
 
 
 def friction_work(mesh, state, pairs, normal, params, tangent=True, K_normal=None,
-                  cache=None):
+                  cache=None, multiplier_jacobian=False):
     """Residual ``(n_dofs,)``, tangent (CSC or None) and :class:`FrictionOutput`
     of the frictional contact work of ``pairs`` (from :func:`.search.search`
     at ``state.r``).
@@ -382,7 +413,8 @@ def friction_work(mesh, state, pairs, normal, params, tangent=True, K_normal=Non
     pairs (from :func:`.assembly.contact_work`): its entries are added into
     the friction tangent's arrays, which hold its pattern.  ``cache``: the
     :class:`.assembly.PatternCache` of the friction tangent's pattern
-    (default: none kept).
+    (default: none kept).  ``multiplier_jacobian`` (with ``tangent``):
+    the :class:`MultiplierJacobian` in the output's ``jacobian``.
     """
     p = params
     n = mesh.n_dofs
@@ -403,10 +435,75 @@ def friction_work(mesh, state, pairs, normal, params, tangent=True, K_normal=Non
         return force, None, out
     dofs, loc = _local(kin, w, *_dforces_dfN(kin, fo, p))
     out.dresidual_dfN = (dofs.reshape(idx.size, 48), loc.reshape(idx.size, 48))
+    if multiplier_jacobian:
+        out.jacobian = _multiplier_jacobian(kin, fo, p, w)
     C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
     K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal,
                 PatternCache() if cache is None else cache)
     return force, K, out
+
+
+def _expand_rows(kin, D):
+    """Reduced operators ``D`` ``(m, 3, NC)`` (see :mod:`.slip`) expanded
+    to the dofs of the pairs' 8 nodes: ``(m, 3, 48)``, the spin columns
+    taken from ``delta phi_k`` to the spatial spins ``delta w_k`` by
+    ``T^-1(phi_k)`` node by node, as :func:`_expand` does."""
+    m = D.shape[0]
+    U = np.zeros((m, 8, NM))
+    U[:, :4, S] = kin.Ns
+    U[:, 4:, M] = kin.Nm
+    U[:, 4:, DM] = kin.dNm
+    U[:, :4, DS] = kin.dNs
+    Dr = D.reshape(m, 3, 6, NM)
+    rows = np.einsum("mkb,micb->mikc", U, Dr)                 # (m, 3, 8 nodes, 6)
+    Tinv = tangent_inv(kin.phi)[kin.nodes]                    # (m, 8, 3, 3)
+    rows[..., 3:] = np.einsum("mikc,mkcd->mikd", rows[..., 3:], Tinv)
+    return rows.reshape(m, 3, 48)
+
+
+def _multiplier_jacobian(kin, fo, p, w):
+    """:class:`MultiplierJacobian` of the pairs: ``c = Lam^T f`` with
+    ``f = (1/mu) P_B(mu gamma f_N)[Pi (v + mu Lam lambda)]`` (``Pi`` the
+    law's projection, ``Lam`` the slave section's incremental rotation with
+    ``push_forward``, else the identity), so ``dc/dlambda = Lam^T (df/da)
+    mu Pi Lam``, ``dc/dy = Lam^T (Df + hat(f) Dw_s)`` (``delta Lam =
+    hat(delta w) Lam``) and ``dc/df_N = Lam^T df/df_N``."""
+    m = w.size
+    eye = np.eye(3)
+    Lam = kin.Lam_s if p.push_forward else np.broadcast_to(eye, (m, 3, 3))
+    LamT = np.swapaxes(Lam, 1, 2)
+    split = p.rotational == "circumferential"
+    t, N = kin.t, kin.N
+    PT = _outer(t, t) if split else eye - _outer(N, N)
+    axis = t if split or p.rotational == "twist" else N
+    dfT = fo.resT.dforce_dslip @ (p.mu_T * PT @ Lam)          # df_T / dlambda_T
+    dfR = fo.resR.dforce_dslip @ (p.mu_R * _outer(axis, axis) @ Lam)
+    zero = np.zeros((m, 3, 3))
+    if split:       # F = f_T + (t . f_R / rho) b, no couple
+        dF_R = kin.b[:, :, None] * (np.einsum("mi,mik->mk", t, dfR) / kin.rho[:, None])[:, None]
+        cols = ((dfT, zero), (dF_R, zero))
+    else:
+        cols = ((dfT, zero), (zero, dfR))
+    dofs = None
+    expanded = []
+    for dF, dC in cols:
+        per = []
+        for k in range(3):
+            dofs, loc = _local(kin, w, dF[:, :, k], dC[:, :, k])
+            per.append(loc.reshape(m, 48))
+        expanded.append(np.stack(per, axis=2))                # (m, 48, 3)
+
+    def rows(f, Df):
+        if p.push_forward:
+            Df = LamT @ (Df + hat(f) @ kin.Dw_s)
+        return _expand_rows(kin, Df)
+
+    return MultiplierJacobian(
+        dofs.reshape(m, 48), rows(fo.fT, fo.DfT), rows(fo.fR, fo.DfR),
+        LamT @ dfT, LamT @ dfR,
+        np.einsum("mji,mj->mi", Lam, fo.resT.dforce_dnormal),
+        np.einsum("mji,mj->mi", Lam, fo.resR.dforce_dnormal),
+        expanded[0], expanded[1])
 
 
 def _no_friction(n, idx, tangent, K_normal):
