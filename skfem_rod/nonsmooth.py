@@ -48,7 +48,7 @@ In plain sight::
         y <- y (+) alpha dy,  lambda <- lambda + alpha dl
 """
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
@@ -340,11 +340,21 @@ def solve_step(problem, ev, cs, remaining, fixed_multipliers=False):
 def contact_newton(problem, r, R, lam, opts, prescribed=None):
     """See :func:`_contact_newton`; with ``contact_solve="newton"`` the
     friction multipliers are unknowns too (the evaluations inside
-    ``Problem.friction_unknowns`` carry their Jacobian)."""
+    ``Problem.friction_unknowns`` carry their Jacobian).  A solve that
+    fails puts the multipliers back as they were."""
+    saved = problem.multipliers.copy()
     if opts.contact_solve == "newton_normal":
-        return _contact_newton(problem, r, R, lam, opts, prescribed)
-    with problem.friction_unknowns():
-        return _contact_newton(problem, r, R, lam, opts, prescribed)
+        out = _contact_newton(problem, r, R, lam, opts, prescribed)
+    else:
+        with problem.friction_unknowns():
+            out = _contact_newton(problem, r, R, lam, opts, prescribed)
+    if not out[3].converged:
+        # a failed solve leaves the multipliers as it found them (the
+        # gradient flow falls back on its own state at those)
+        m = problem.multipliers
+        for f in fields(m):                  # in place: callers hold m
+            setattr(m, f.name, getattr(saved, f.name))
+    return out
 
 
 def _contact_newton(problem, r, R, lam, opts, prescribed=None):

@@ -287,3 +287,28 @@ def test_monotone_line_search_stops_the_stick_slip_two_cycle(monkeypatch):
         monkeypatch.undo()
     assert found[4] >= 1
     assert found[1] == 0
+
+
+@pytest.mark.parametrize("mode", ["newton", "newton_normal"])
+def test_a_failed_solve_leaves_the_multipliers_as_it_found_them(mode):
+    """A generalized Newton solve that fails (here: one iteration allowed
+    from a state far from equilibrium) puts every multiplier back; the
+    gradient flow falls back on its own state at those multipliers (the
+    frictional plectoneme cycle kept a flow state with a residual of 0.28
+    of the force scale, evaluated at the failed solve's multipliers)."""
+    from dataclasses import fields
+    from skfem_rod.options import make_options
+    rng, p, r, R = _problem(0, "slip")
+    before = p.multipliers.copy()
+    opts = make_options({"contact_solve": mode, "max_iterations": 1})
+    *_, rep = nonsmooth.contact_newton(p, r, R, 0.0, opts)
+    assert not rep.converged
+    for f in fields(before):
+        a, b = getattr(p.multipliers, f.name), getattr(before, f.name)
+        assert np.array_equal(a, b), f.name
+    # ... while its iteration did move them (the inner loop, without the
+    # restore, leaves them changed: the test can see a change)
+    with p.friction_unknowns():
+        *_, rep = nonsmooth._contact_newton(p, r, R, 0.0, opts)
+    assert not rep.converged
+    assert not np.array_equal(p.multipliers.normal, before.normal)
