@@ -26,7 +26,7 @@ of the fixed penalty to the tolerances; only the path to it changes.
 """
 import numpy as np
 
-from .contact.friction import SLIP, misalignment
+from .contact.friction_assembly import coulomb_misfit
 from .contact.law import gap, uzawa_update
 
 #: the adaptive penalty raises the penalty at a point whose violation did
@@ -91,7 +91,8 @@ def augmented_lagrangian(problem, solve_pass):
         if problem.friction:
             moved, lam_T, lam_R = friction_update(problem, ce.friction)
             rep.friction_moved = moved
-            rep.friction_misfit = coulomb_misfit(problem, ce.friction)
+            rep.friction_misfit = coulomb_misfit(ce.friction, problem.friction_params(),
+                                                 c.friction_tolerance)
             done = done and max(moved, rep.friction_misfit) <= c.friction_tolerance
         if done or uzawa == c.max_uzawa:
             rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
@@ -314,35 +315,6 @@ def adapt_friction_penalty(problem, fN, new, moved, last):
     if moved > c.friction_tolerance and moved > PENALTY_DROP * last and moved > 2 * normal:
         m.friction_scale = min(m.friction_scale * c.penalty_growth, c.max_penalty_scale)
     return moved
-
-
-def coulomb_misfit(problem, out):
-    """How far the friction forces of a converged pass are from Coulomb's
-    law (eq. 3.10) where the points slip: the largest component of a
-    slipping point's force across its slip, relative to the bound
-    ``gamma f_N`` (the sine of the angle between force and slip: a force
-    relative to the bound, as the multipliers' motion is measured), over
-    both laws; 0 where nothing slips.  Points whose slip is below
-    ``friction_tolerance`` times their stick range ``mu gamma f_N`` are left
-    out: the slip adds less than the tolerance to their trial force
-    ``lambda + g / mu``, so its direction is not theirs to follow (and a
-    slip at round-off, as in a rigid step, has no direction).
-
-    The multipliers' motion alone does not bound the misfit: in the
-    rotational-friction scene with both laws on, forces ended 4 degrees off
-    slips of 0.1 to 0.7 stick ranges while the multipliers moved by less
-    than the tolerance (docs/friction.md)."""
-    c, m = problem.contact, problem.multipliers
-    p = c.friction_params(scale_T=m.friction_scale, scale_R=m.friction_scale)
-    worst = 0.0
-    for gamma, mu, f, g, state in ((c.gamma_T, p.mu_T, out.force_T, out.slip_T, out.state_T),
-                                   (c.gamma_R, p.mu_R, out.force_R, out.slip_R, out.state_R)):
-        if gamma > 0:
-            big = (state == SLIP) & (np.linalg.norm(g, axis=1)
-                                     > c.friction_tolerance * mu * gamma * out.fN)
-            worst = max(worst, float(misalignment(f[big], g[big], gamma, out.fN[big])
-                                     .max(initial=0.0)))
-    return worst
 
 
 def friction_update(problem, out):

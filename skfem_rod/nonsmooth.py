@@ -55,6 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .contact.friction_assembly import coulomb_misfit
 from .contact.law import gap
 from .kinematics import ElementRotationError
 from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
@@ -104,6 +105,9 @@ class ContactState:
     #: how far the friction multipliers are from their update, relative to
     #: the Coulomb bound (the Uzawa loop's ``friction_moved``; 0 without)
     friction_moved: float = 0.0
+    #: the slipping points' forces across their slips, relative to the
+    #: bound (the Uzawa loop's ``coulomb_misfit``; 0 without)
+    friction_misfit: float = 0.0
 
 
 class Merit(NamedTuple):
@@ -188,6 +192,12 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
             coef = c.gamma_T if X == "T" else c.gamma_R
             moved = max(moved, float(np.abs(diff).max()) / (coef * fr.fN.max()))
     C = np.concatenate(Cs)
+    # the Uzawa loop's Coulomb test: at a point whose slip is just above
+    # its tolerance the force's direction is sensitive to the multiplier
+    # (a multiplier 4e-5 gamma f_N off its update turned forces by 0.03
+    # rad in the knot), so the polish waits for it too
+    misfit = (coulomb_misfit(fr, problem.friction_params(), c.friction_tolerance)
+              if laws else 0.0)
     d = gap(pairs.distance, c.radius)
     mu = c.penalty / m.penalty_scale[pairs.slave]
     act = (d + mu * lam[pairs.slave]) > 0
@@ -204,7 +214,8 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     Cw = weight * C
     merit = float(np.sqrt(problem.residual_norm(ev) ** 2 + np.dot(Cw, Cw)))
     if not jacobian:
-        return ContactState(G, C, None, None, None, None, active, pen, opened, merit, moved)
+        return ContactState(G, C, None, None, None, None, active, pen, opened, merit, moved,
+                            misfit)
     # dl = delta l over the 24 position dofs of the pair (assembly.py)
     from .element import shape_functions
     k = np.flatnonzero(act)
@@ -272,7 +283,8 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     if problem.T is not None:
         K_yl = problem.T.T @ K_yl
         K_ly = K_ly @ problem.T
-    return ContactState(G, C, K_ly, K_yl, D, D_reg, active, pen, opened, merit, moved)
+    return ContactState(G, C, K_ly, K_yl, D, D_reg, active, pen, opened, merit, moved,
+                        misfit)
 
 
 def contact_states(problem, ev, cs):
@@ -387,7 +399,7 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         states = now
         merits.append(cs.merit)
         tolerances = (cs.penetration <= tol and cs.opened <= tol
-                      and cs.friction_moved <= c.friction_tolerance)
+                      and max(cs.friction_moved, cs.friction_misfit) <= c.friction_tolerance)
         if not np.any(remaining) and (tolerances or polish) and (
                 rn <= opts.rtol * scale or last_update <= opts.increment_tol):
             return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev,

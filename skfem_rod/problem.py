@@ -387,8 +387,7 @@ class Problem:
             from .contact.law import NormalLaw
             from .contact.slip import SlipState
             r_n, R_n = reference
-            params = c.friction_params(push_forward=True, scale_T=m.friction_scale,
-                                       scale_R=m.friction_scale)
+            params = self.friction_params()
             state = SlipState(r, R, r_n, R_n, m.tangential, m.rotational)
             ff, Kf, fr = friction_work(mesh, state, pairs, NormalLaw(m.normal, mu, c.radius),
                                        params, tangent=tangent, K_normal=K,
@@ -415,6 +414,15 @@ class Problem:
             ce.crossing, ce.crossing_fN, ce.energy = cp, fNc, ce.energy + ec
             tm["crossing"] += time.perf_counter() - t3
         return ce, force, K
+
+    def friction_params(self):
+        """The :class:`~skfem_rod.contact.friction_assembly.FrictionParams`
+        of the evaluations: the contact options' coefficients, the
+        compliances at the multipliers' adaptive friction factor, carried
+        multipliers pushed forward."""
+        m = self.multipliers
+        return self.contact.friction_params(push_forward=True, scale_T=m.friction_scale,
+                                            scale_R=m.friction_scale)
 
     # -- convergence -------------------------------------------------------
     def force_scale(self, ev):
@@ -654,7 +662,7 @@ class Report:
     uzawa_converged: bool = True
     uzawa_note: str = ""
     friction_moved: float = 0.0
-    friction_misfit: float = 0.0     # augmented.coulomb_misfit of the last pass
+    friction_misfit: float = 0.0     # friction_assembly.coulomb_misfit of the last pass
     # generalized Newton (skfem_rod.nonsmooth): |C| per iteration and the
     # iteration from which the multipliers were held
     complementarity: list = None

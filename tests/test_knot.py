@@ -111,3 +111,23 @@ def test_knot_obeys_coulomb_at_every_step(runs):
     res = runs[GAMMA]["result"]
     coulomb_checks(res, GAMMA, 0.0)
     assert sum(w["dissipation"] for w in runs[GAMMA]["rows"]) > 0
+
+
+@pytest.mark.slow
+def test_generalized_newton_settles_coulomb_at_the_first_frictional_step(tied):
+    """The first step with friction (gamma_T = 0.1, load factor 0, from the
+    knot tied without) by the generalized Newton with the friction
+    multipliers as unknowns (``contact_solve="newton"``, the demo's choice
+    with friction): its Uzawa loop ends within the tolerances, with the
+    slipping points' forces along their slips.  Its polish used to start
+    as soon as the multipliers were within the tolerance of their update,
+    leaving forces up to 0.06 rad off the slips of points that barely slip:
+    60 Uzawa updates, the limit, and a misfit of 0.016 (tolerance 1e-3)."""
+    rod = knot.build(0.1, PULL, N_EL)
+    res = rod.solve(n_steps=1, path=[0.0, 1e-12], start=tied, snap="relax",
+                    max_iterations=12, predictor="secant", contact_solve="newton")
+    first = res.steps[0].contact
+    # (the Uzawa loop ends only with the misfit within friction_tolerance)
+    assert first.uzawa_converged, res.log
+    assert first.uzawa < rod.contact.max_uzawa
+    assert first.penetration <= rod.contact.tolerance * knot.EPS

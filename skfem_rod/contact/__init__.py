@@ -55,7 +55,7 @@ class ContactOptions:
         multiplier moved by less than ``friction_tolerance * gamma f_N``
         (largest over the points) and the force of every slipping point is
         within ``friction_tolerance * gamma f_N`` of its slip's direction
-        (``augmented.coulomb_misfit``); default 1e-3.
+        (``friction_assembly.coulomb_misfit``); default 1e-3.
     penalty_growth : adaptive penalty of the Uzawa loop (the method of
         multipliers' penalty update, ``augmented.adapt_penalty``): at a point
         still short of its tolerance whose violation did not drop by a factor

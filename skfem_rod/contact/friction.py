@@ -273,7 +273,7 @@ def misalignment(f, g, gamma, fN):
     (a slipping point, eq. 3.10).  Zero where ``g = 0`` or the bound is zero
     (no direction to follow).  The Uzawa loop stops only when it is below
     ``friction_tolerance`` at the points that slip
-    (:func:`skfem_rod.augmented.coulomb_misfit`)."""
+    (:func:`skfem_rod.contact.friction_assembly.coulomb_misfit`)."""
     f, g = _vectors(f, g)
     bound = np.asarray(gamma, float) * np.asarray(fN, float)
     gn = np.linalg.norm(g, axis=-1)
