@@ -485,17 +485,21 @@ def write_series(directory, basename, steps, *, xdmf=True):
 # --------------------------------------------------------------------------
 # JSON summaries
 # --------------------------------------------------------------------------
-def _jsonable(x):
+def _jsonable(x, where="results"):
+    """``x`` with numpy scalars and arrays as plain numbers and lists;
+    ``where``: the path of ``x`` in the results, named when a number is
+    not finite."""
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): _jsonable(v, f"{where}.{k}") for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [_jsonable(v, f"{where}[{i}]") for i, v in enumerate(x)]
     if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
+        return _jsonable(x.tolist(), where)
     if isinstance(x, (np.floating, float)):
         v = float(x)
         if not np.isfinite(v):
-            raise ValueError(f"results contain a non-finite number ({v}); refusing to write it")
+            raise ValueError(f"results contain a non-finite number ({v}) at {where}; "
+                             "refusing to write it")
         return v
     if isinstance(x, (np.integer,)):
         return int(x)

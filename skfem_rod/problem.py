@@ -242,12 +242,12 @@ class Problem:
     def friction_unknowns(self):
         """Evaluations inside the ``with`` block compute the Jacobian of the
         friction multipliers' update (the generalized Newton solves for
-        them, :mod:`skfem_rod.nonsmooth`); off after."""
-        self.friction_jacobian = True
+        them, :mod:`skfem_rod.nonsmooth`); as before after."""
+        before, self.friction_jacobian = self.friction_jacobian, True
         try:
             yield self
         finally:
-            self.friction_jacobian = False
+            self.friction_jacobian = before
 
     def push(self, r, R, mode, size):
         """``(r, R)`` moved along ``mode`` (dof basis; e.g. an unstable mode)

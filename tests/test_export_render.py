@@ -432,3 +432,15 @@ def test_long_titles_with_symbols_fit_a_480_pixel_image(tmp_path):
     dark = np.nonzero(band < 128)
     assert dark[0].size > 200                                   # the title is drawn
     assert dark[1].min() > 2 and dark[1].max() < 477            # and not clipped
+
+
+def test_json_writer_names_where_a_number_is_not_finite(tmp_path):
+    """A non-finite number is refused with its place in the results (the
+    knot demo's summary of four runs failed with only "(inf)"), and no
+    file is written."""
+    from skfem_rod.export import write_json
+    path = tmp_path / "results.json"
+    data = {"runs": [{"force": [1.0, 2.0]}, {"force": [3.0, float("inf")]}]}
+    with pytest.raises(ValueError, match=r"inf\) at results\.runs\[1\]\.force\[1\]"):
+        write_json(path, data)
+    assert not path.exists() and not list(tmp_path.iterdir())
