@@ -131,3 +131,26 @@ def test_generalized_newton_settles_coulomb_at_the_first_frictional_step(tied):
     assert first.uzawa_converged, res.log
     assert first.uzawa < rod.contact.max_uzawa
     assert first.penetration <= rod.contact.tolerance * knot.EPS
+
+
+def test_comparison_is_written_where_the_relation_predicts_no_loosening(tmp_path):
+    """Where the tight-knot relation's loosening force is not positive
+    (``eps < 2 c gamma``: at gamma_T = 0.3 and eps = 0.22, the demo's
+    knot) it predicts no force ratio: None, and the demo's summary is
+    written (it was infinite, which the JSON writer refuses: the demo
+    failed after its four runs)."""
+    from skfem_rod.export import write_json
+    lam = [0.0, 0.5, 1.0, 0.5, 0.0]
+    time = [0.0, 0.25, 0.5, 0.75, 1.0]
+
+    def rows(up, down):
+        return [dict(load_factor=l, time=t, distance=1.0 + 0.2 * l,
+                     force=up if t <= 0.5 else down, n_contact=20, normal_force=16.0,
+                     friction_force=1.0) for l, t in zip(lam, time)]
+    out = knot.compare(rows(3.0, 3.0), rows(14.0, -6.0), 0.3)
+    e = out["eps"][0]
+    assert e < 2 * knot.C_TREFOIL * 0.3
+    assert out["ratio_predicted"].tolist() == [None]
+    assert out["ratio"][0] == pytest.approx(14.0 / -6.0)
+    path = write_json(tmp_path / "r.json", {k: v.tolist() for k, v in out.items()})
+    assert '"ratio_predicted": [\n    null\n  ]' in open(path).read()

@@ -301,7 +301,9 @@ def compare(frictionless, rows, gamma, eps=EPS):
         out["dF"].append(dF)
         out["c"].append(dF * eps**2 / (2 * gamma * B * e**3) if gamma > 0 else 0.0)
         out["ratio"].append(up["force"] / down["force"])
-        out["ratio_predicted"].append(pu / pd if pd > 0 else np.inf)
+        # (no ratio where the relation's loosening force is not positive:
+        # the theory's knot would not loosen by itself; None in the JSON)
+        out["ratio_predicted"].append(pu / pd if pd > 0 else None)
         out["normal_force0"].append(float(np.interp(up["distance"], d0[o], N0)))
         out["friction_force"].append(up["friction_force"])
     return {k: np.array(v) for k, v in out.items()}
