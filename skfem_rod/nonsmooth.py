@@ -106,7 +106,8 @@ class ContactState:
     #: the Coulomb bound (the Uzawa loop's ``friction_moved``; 0 without)
     friction_moved: float = 0.0
     #: the slipping points' forces across their slips, relative to the
-    #: bound (the Uzawa loop's ``coulomb_misfit``; 0 without)
+    #: bound (the Uzawa loop's ``coulomb_misfit``; 0 without, and at the
+    #: line search's trials, evaluated without the Jacobian)
     friction_misfit: float = 0.0
 
 
@@ -195,9 +196,10 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     # the Uzawa loop's Coulomb test: at a point whose slip is just above
     # its tolerance the force's direction is sensitive to the multiplier
     # (a multiplier 4e-5 gamma f_N off its update turned forces by 0.03
-    # rad in the knot), so the polish waits for it too
+    # rad in the knot), so the polish waits for it too (read at the
+    # iterates, not at the line search's trials)
     misfit = (coulomb_misfit(fr, problem.friction_params(), c.friction_tolerance)
-              if laws else 0.0)
+              if laws and jacobian else 0.0)
     d = gap(pairs.distance, c.radius)
     mu = c.penalty / m.penalty_scale[pairs.slave]
     act = (d + mu * lam[pairs.slave]) > 0
