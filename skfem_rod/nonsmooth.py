@@ -190,8 +190,8 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
         diff = update - getattr(m, name)
         Cs.append((w_all[:, None] * diff).ravel())
         if fr.fN.size:
-            coef = c.gamma_T if X == "T" else c.gamma_R
-            moved = max(moved, float(np.abs(diff).max()) / (coef * fr.fN.max()))
+            moved = max(moved, float(np.abs(diff).max())
+                        / (getattr(c, "gamma_" + X) * fr.fN.max()))
     C = np.concatenate(Cs)
     # the Uzawa loop's Coulomb test: at a point whose slip is just above
     # its tolerance the force's direction is sensitive to the multiplier
