@@ -17,7 +17,7 @@ from skfem.quadrature import get_quadrature
 from skfem.refdom import RefLine
 
 from .element import ElementLineP3, ORDER_BY_POSITION
-from .validation import count
+from .validation import arclengths, count
 
 
 @dataclass
@@ -168,10 +168,7 @@ class RodMesh:
 
     def locate(self, s):
         """Element index and reference coordinate of arclengths ``s``."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        if np.any(~np.isfinite(s)) or np.any(s < -1e-12 * self.length) \
-                or np.any(s > self.length * (1 + 1e-12)):
-            raise ValueError(f"arclength s must lie in [0, {self.length}], got {s}")
+        s = arclengths("arclength s", s, self.length)
         e = np.clip(np.searchsorted(self.vertices, s, side="right") - 1,
                     0, self.n_elements - 1)
         xi = (s - self.vertices[e]) / (self.vertices[e + 1] - self.vertices[e])

@@ -303,10 +303,12 @@ class Result:
         array([[0.  , 0.01, 0.  ],
                [0.  , 0.01, 0.  ]])
         """
-        if np.ndim(s) == 0:                                         # scalar in, scalar out
-            return {k: v[0] for k, v in self.evaluate([s], step).items()}
+        from .validation import arclengths
         mesh, rod = self.rod.mesh, self.rod
-        s = np.atleast_1d(np.asarray(s, dtype=float))
+        scalar = np.ndim(s) == 0
+        s = arclengths("s", s, mesh.length)
+        if scalar:                                                  # scalar in, scalar out
+            return {k: v[0] for k, v in self.evaluate(s, step).items()}
         st = self._step(step)
         e, xi = mesh.locate(s)
         eps, Rs, r = self._fields(e, xi[:, None], st.r, st.R)

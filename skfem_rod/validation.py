@@ -4,7 +4,8 @@ raises ValueError naming the parameter, the value, and what is allowed.
 One checker per kind of value, used everywhere that kind is taken: a
 number > 0 (:func:`positive`), an integer (:func:`count`), a flag
 (:func:`flag`), a 3-vector (:func:`finite_vector`), an array of points
-(:func:`points`), a step index (:func:`step_index`), and the sizes a run
+(:func:`points`), arclengths along a rod (:func:`arclengths`), a step
+index (:func:`step_index`), and the sizes a run
 may allocate (:func:`memory_budget`).
 """
 import numbers
@@ -136,6 +137,29 @@ def points(name, value, minimum=1, n=None):
         raise ValueError(f"{name} must be finite (no NaN or inf): row {k} is "
                          f"{P[k].tolist()}")
     return P
+
+
+def arclengths(name, value, length):
+    """Arclengths in ``[0, length]`` as a 1-d float array (a scalar becomes
+    one entry); bools and strings are not numbers."""
+    if isinstance(value, (str, bytes)) or _has_bool(value):
+        raise ValueError(f"{name} must be arclengths in [0, {length}] (numbers), "
+                         f"got {_show(value)}")
+    try:
+        raw = np.asarray(value)
+        if raw.dtype.kind not in "iuf":                     # strings, objects, bytes
+            raise TypeError
+        s = np.atleast_1d(raw.astype(float))
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be arclengths in [0, {length}] (numbers), "
+                         f"got {_show(value)}") from None
+    if s.ndim != 1:
+        raise ValueError(f"{name} must be a number or a 1-d array of numbers, got shape "
+                         f"{s.shape}")
+    if np.any(~np.isfinite(s)) or np.any(s < -1e-12 * length) \
+            or np.any(s > length * (1 + 1e-12)):
+        raise ValueError(f"{name} must lie in [0, {length}], got {_show(value)}")
+    return s
 
 
 def step_index(value, n_steps, name="step"):

@@ -91,6 +91,16 @@ def test_step_index_out_of_range(solved, call):
         call(solved)
 
 
+@pytest.mark.parametrize("s", [False, True, "0.5", b"x", None, [True, 0.5], ["0.1"],
+                               np.bool_(True), 1.5, -0.1, np.nan, [[0.5]]])
+@pytest.mark.parametrize("field", ["position", "frame", "evaluate"])
+def test_arclengths_are_numbers_on_the_rod(solved, field, s):
+    """A bool is not an arclength (``False`` was read as 0, found by the
+    fuzz); nor is a string, a NaN or a point off the rod."""
+    with np.errstate(invalid="ignore"), pytest.raises(ValueError, match=r"^s must"):
+        getattr(solved, field)(s)
+
+
 @pytest.mark.parametrize("value", [0, -1, 2.5, "a", 10**9])
 def test_sample_per_element(solved, value):
     with pytest.raises(ValueError, match=r"^per_element must be an integer"):
