@@ -26,7 +26,7 @@ of the fixed penalty to the tolerances; only the path to it changes.
 """
 import numpy as np
 
-from .contact.friction_assembly import coulomb_misfit
+from .contact.friction_assembly import coulomb_misfit, multiplier_updates
 from .contact.law import gap, uzawa_update
 
 #: the adaptive penalty raises the penalty at a point whose violation did
@@ -89,7 +89,7 @@ def augmented_lagrangian(problem, solve_pass):
         done = pen <= c.tolerance * c.radius and opened <= c.tolerance * c.radius
         m = problem.multipliers
         if problem.friction:
-            moved, lam_T, lam_R = friction_update(problem, ce.friction)
+            updates, moved = multiplier_updates(ce.friction, m, c)
             rep.friction_moved = moved
             rep.friction_misfit = coulomb_misfit(ce.friction, problem.friction_params(),
                                                  c.friction_tolerance)
@@ -108,7 +108,7 @@ def augmented_lagrangian(problem, solve_pass):
             last = adapt_penalty(problem, ce.pairs, d, ce.fN, new, last)
         m.normal = new
         if problem.friction:
-            m.tangential, m.rotational = lam_T, lam_R
+            m.tangential, m.rotational = updates["tangential"], updates["rotational"]
         if ce.crossing is not None:
             old = carry_crossing(m, ce.crossing)
             m.crossing_key, m.crossing = ce.crossing.key, uzawa_update(dc, old, c.crossing_penalty)
@@ -315,24 +315,3 @@ def adapt_friction_penalty(problem, fN, new, moved, last):
     if moved > c.friction_tolerance and moved > PENALTY_DROP * last and moved > 2 * normal:
         m.friction_scale = min(m.friction_scale * c.penalty_growth, c.max_penalty_scale)
     return moved
-
-
-def friction_update(problem, out):
-    """Friction multipliers after an Uzawa update, ``lambda <- f`` (the
-    projected multiplier of :func:`skfem_rod.contact.friction.uzawa_update`,
-    computed by the assembler at the converged iterate, expressed at the
-    last converged state: ``multiplier_T``, ``multiplier_R``; the problem's
-    ``commit`` turns them into the accepted state's forces), and how far
-    they moved relative to the Coulomb bound ``gamma f_N`` (largest over the
-    points; 0 without active points)."""
-    c, m = problem.contact, problem.multipliers
-    lam_T = np.zeros_like(m.tangential)
-    lam_R = np.zeros_like(m.rotational)
-    lam_T[out.slave] = out.multiplier_T
-    lam_R[out.slave] = out.multiplier_R
-    moved = 0.0
-    for gamma, new, old in ((c.gamma_T, lam_T, m.tangential), (c.gamma_R, lam_R, m.rotational)):
-        if gamma > 0 and out.fN.size:
-            bound = gamma * out.fN.max()
-            moved = max(moved, float(np.abs(new - old).max()) / bound)
-    return moved, lam_T, lam_R

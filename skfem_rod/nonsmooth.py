@@ -55,7 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.friction_assembly import coulomb_misfit
+from .contact.friction_assembly import LAWS, coulomb_misfit, multiplier_updates
 from .contact.law import gap
 from .kinematics import ElementRotationError
 from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
@@ -123,11 +123,6 @@ class Merit(NamedTuple):
     first: bool
 
 
-#: the friction multipliers of :class:`~skfem_rod.problem.Multipliers`
-#: per law, with the contact option of its coefficient
-LAWS = (("tangential", "gamma_T", "T"), ("rotational", "gamma_R", "R"))
-
-
 def friction_laws(problem):
     """The friction laws whose multipliers are unknowns: inside
     ``Problem.friction_unknowns`` (``contact_solve="newton"``), those with
@@ -184,14 +179,10 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     Cs = [w_all * (fN - lam)]
     fr = ce.friction
     moved = 0.0
-    for name, X in laws:
-        update = np.zeros((ns, 3))
-        update[fr.slave] = getattr(fr, "multiplier_" + X)
-        diff = update - getattr(m, name)
-        Cs.append((w_all[:, None] * diff).ravel())
-        if fr.fN.size:
-            moved = max(moved, float(np.abs(diff).max())
-                        / (getattr(c, "gamma_" + X) * fr.fN.max()))
+    if laws:
+        updates, moved = multiplier_updates(fr, m, c, [name for name, _ in laws])
+        for name, _ in laws:
+            Cs.append((w_all[:, None] * (updates[name] - getattr(m, name))).ravel())
     C = np.concatenate(Cs)
     # the Uzawa loop's Coulomb test: at a point whose slip is just above
     # its tolerance the force's direction is sensitive to the multiplier

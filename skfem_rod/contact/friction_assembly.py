@@ -506,6 +506,37 @@ def _multiplier_jacobian(kin, fo, p, w):
         expanded[0], expanded[1])
 
 
+#: the friction laws: the attribute of their multipliers
+#: (:class:`~skfem_rod.problem.Multipliers`), the contact option of their
+#: coefficient, and the suffix of their fields in :class:`FrictionOutput`
+LAWS = (("tangential", "gamma_T", "T"), ("rotational", "gamma_R", "R"))
+
+
+def multiplier_updates(out, multipliers, contact, names=None):
+    """The Uzawa update ``lambda <- f`` of the friction multipliers (the
+    projected multipliers of :func:`skfem_rod.contact.friction.uzawa_update`
+    in the :class:`FrictionOutput` ``out``, expressed at the last converged
+    state: ``multiplier_T``, ``multiplier_R``) of the laws ``names`` (all by
+    default), each a full ``(n_slaves, 3)`` array, zero at the points out of
+    contact; and how far they are from ``multipliers``: the largest change
+    relative to the Coulomb bound ``gamma max f_N`` of the contact options
+    ``contact`` (0 without points in contact or with a zero coefficient).
+    Read by the Uzawa loop (the update itself) and the generalized Newton
+    (its friction residual ``w (update - lambda)``)."""
+    updates, moved = {}, 0.0
+    for name, coef, X in LAWS:
+        if names is not None and name not in names:
+            continue
+        old = getattr(multipliers, name)
+        new = np.zeros_like(old)
+        new[out.slave] = getattr(out, "multiplier_" + X)
+        updates[name] = new
+        gamma = getattr(contact, coef)
+        if gamma > 0 and out.fN.size:
+            moved = max(moved, float(np.abs(new - old).max()) / (gamma * out.fN.max()))
+    return updates, moved
+
+
 def coulomb_misfit(out, params, tolerance):
     """How far the friction forces of the :class:`FrictionOutput` ``out``
     are from Coulomb's law (eq. 3.10) where the points slip: the largest
