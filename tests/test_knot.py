@@ -42,8 +42,20 @@ def tied():
 
 
 @pytest.fixture(scope="module")
-def runs(tied):
-    return {g: knot.solve(g, PULL, N_EL, STEPS, start=tied) for g in (0.0, GAMMA)}
+def tightened(tied):
+    """The knot after one frictionless pull-and-release: the knot tied with
+    the gaps closed (the demo's tolerance, 1e-5 eps) is a loose arrangement
+    of the loops, which the first pull leaves for the tight one by a jump
+    (docs/knot.md, "the contact tolerance"); the cycles below start on the
+    tight one, where a frictionless cycle is reversible."""
+    sol = knot.solve(0.0, PULL, N_EL, STEPS, start=tied)
+    assert sol["result"].converged, sol["result"].message
+    return sol["result"]
+
+
+@pytest.fixture(scope="module")
+def runs(tightened):
+    return {g: knot.solve(g, PULL, N_EL, STEPS, start=tightened) for g in (0.0, GAMMA)}
 
 
 @pytest.mark.slow
@@ -114,7 +126,7 @@ def test_knot_obeys_coulomb_at_every_step(runs):
 
 
 @pytest.mark.slow
-def test_generalized_newton_settles_coulomb_at_the_first_frictional_step(tied):
+def test_generalized_newton_settles_coulomb_at_the_first_frictional_step():
     """The first step with friction (gamma_T = 0.1, load factor 0, from the
     knot tied without) by the generalized Newton with the friction
     multipliers as unknowns (``contact_solve="newton"``, the demo's choice
@@ -122,8 +134,12 @@ def test_generalized_newton_settles_coulomb_at_the_first_frictional_step(tied):
     slipping points' forces along their slips.  Its polish used to start
     as soon as the multipliers were within the tolerance of their update,
     leaving forces up to 0.06 rad off the slips of points that barely slip:
-    60 Uzawa updates, the limit, and a misfit of 0.016 (tolerance 1e-3)."""
-    rod = knot.build(0.1, PULL, N_EL)
+    60 Uzawa updates, the limit, and a misfit of 0.016 (tolerance 1e-3).
+    That was at the default contact tolerance (1e-3 eps), the demo's then:
+    the knot tied at the demo's 1e-5 eps now is another equilibrium, whose
+    first step did not show it, so this test ties and solves at 1e-3."""
+    tied = knot.tie(N_EL, tolerance=1e-3)
+    rod = knot.build(0.1, PULL, N_EL, tolerance=1e-3)
     res = rod.solve(n_steps=1, path=[0.0, 1e-12], start=tied, snap="relax",
                     max_iterations=12, predictor="secant", contact_solve="newton")
     first = res.steps[0].contact
