@@ -56,7 +56,7 @@ def run(gamma=0.0, elements=60, steps=10, pull=0.2, options=None, contact=None,
         t0 = time.perf_counter()
         tied = knot.tie(elements)
         if pretighten:
-            tied = knot.solve(0.0, pull, elements, steps, start=tied)["result"]
+            tied = knot.tighten(tied, pull, elements, steps)
         t_tie = time.perf_counter() - t0
         sol = knot.solve(gamma, pull, elements, steps, start=tied, options=options,
                          **(contact or {}))

@@ -43,14 +43,12 @@ def tied():
 
 @pytest.fixture(scope="module")
 def tightened(tied):
-    """The knot after one frictionless pull-and-release: the knot tied with
-    the gaps closed (the demo's tolerance, 1e-5 eps) is a loose arrangement
-    of the loops, which the first pull leaves for the tight one by a jump
-    (docs/knot.md, "the contact tolerance"); the cycles below start on the
-    tight one, where a frictionless cycle is reversible."""
-    sol = knot.solve(0.0, PULL, N_EL, STEPS, start=tied)
-    assert sol["result"].converged, sol["result"].message
-    return sol["result"]
+    """The knot after one frictionless pull-and-release (``knot.tighten``):
+    the knot tied with the gaps closed (the demo's tolerance, 1e-5 eps) is
+    a loose arrangement of the loops, which the first pull leaves for the
+    tight one by a jump; the cycles below start on the tight one, where a
+    frictionless cycle is reversible."""
+    return knot.tighten(tied, PULL, N_EL, STEPS)
 
 
 @pytest.fixture(scope="module")
@@ -170,3 +168,15 @@ def test_comparison_is_written_where_the_relation_predicts_no_loosening(tmp_path
     assert out["ratio"][0] == pytest.approx(14.0 / -6.0)
     path = write_json(tmp_path / "r.json", {k: v.tolist() for k, v in out.items()})
     assert '"ratio_predicted": [\n    null\n  ]' in open(path).read()
+
+
+def test_tighten_refuses_a_cycle_that_stopped_short(monkeypatch):
+    """``knot.tighten`` returns the state at load factor 0 after a cycle; a
+    cycle that stopped short (its last step elsewhere on the path) is an
+    error, not a start state."""
+    class Short:
+        converged = False
+        message = "stopped at load factor 0.4"
+    monkeypatch.setattr(knot, "solve", lambda *a, **k: {"result": Short()})
+    with pytest.raises(RuntimeError, match="tightening the knot failed: stopped at load"):
+        knot.tighten(object())

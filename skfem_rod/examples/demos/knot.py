@@ -149,6 +149,19 @@ def tie(n_elements=60, eps=EPS, clearance=6.0, tail=0.5, **contact):
     return res
 
 
+def tighten(start, pull=0.2, n_elements=60, n_steps=10, **contact):
+    """The knot ``start`` (e.g. :func:`tie`'s) after one frictionless
+    pull-and-release (:func:`solve`): tied with the gaps closed, the knot is
+    a loose arrangement of the loops, which the first pull leaves for the
+    tight one by a jump (docs/knot.md, "the contact tolerance"); a cycle
+    from the returned state starts on the tight one.  RuntimeError if the
+    cycle does not reach load factor 0 (its last step would be elsewhere)."""
+    res = solve(0.0, pull, n_elements, n_steps, start=start, **contact)["result"]
+    if not res.converged:
+        raise RuntimeError(f"tightening the knot failed: {res.message}")
+    return res
+
+
 def _sampled(result, k, per_element):
     """Arclengths and positions at ``per_element`` points per element."""
     s = np.linspace(0.0, result.rod.length, result.rod.mesh.n_elements * per_element + 1)
@@ -208,8 +221,8 @@ def solve(gamma_T=0.0, pull=0.2, n_elements=60, n_steps=10, eps=EPS, clearance=6
     the normal and friction multipliers (``contact_solve="newton"``): at
     ``gamma_T`` = 0.2 the cycle took 0.64 of the time of Uzawa's, 69
     Uzawa updates against 491, and no step at the Uzawa limit (Uzawa's
-    step 1 stops there); without friction Uzawa is faster (121 s against
-    170 s).  ``options``: solver options that replace or add to these
+    step 1 stops there); without friction Uzawa is faster (167 s against
+    212 s at the contact tolerance 1e-5 eps).  ``options``: solver options that replace or add to these
     (``Rod.solve`` keywords; benchmarks/bench_knot.py)."""
     if start is None:
         start = tie(n_elements, eps, clearance, tail, **contact)
