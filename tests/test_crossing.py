@@ -539,3 +539,44 @@ def test_a_held_pair_whose_minimum_is_gone_acts_where_it_was_last_seen():
     assert cp.s[i[0]] == pytest.approx(seen[0], abs=1e-12)
     track.record(cp)
     assert track.places[0, 0] == pytest.approx(seen[0], abs=1e-12)   # stays there
+
+
+def _double_helix(n=12, a=1.05, pitch=12.0, link=3):
+    """One turn of two plies of a double helix (``n`` elements each, radius
+    ``a``, contact radius 1: the plies 2.1 apart) joined by a link far
+    above.  The strands are wrapped around each other: their distance is
+    flat along the plies (effective angle 0); on the P3 centreline it
+    ripples by 5e-5, with minima inside the elements and on the nodes (the
+    kinks of the C0 curve)."""
+    ne = 2 * n + link
+    mesh = RodMesh(float(ne), ne)
+    r = np.zeros((mesh.n_nodes, 3))
+    t = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+    ply = lambda th, ph: np.c_[a * np.cos(th + ph), a * np.sin(th + ph),     # noqa: E731
+                               pitch * th / (2 * np.pi)]
+    for e in range(n):
+        r[mesh.nodes[e]] = ply((e + t) / n * 2 * np.pi, 0.0)
+        r[mesh.nodes[n + link + e]] = ply((1 - (e + t) / n) * 2 * np.pi, np.pi)
+    top1, top2 = r[mesh.nodes[n - 1, 1]], r[mesh.nodes[n + link, 0]]
+    for k in range(link):
+        x = (k + t) / link
+        r[mesh.nodes[n + k]] = (top1 + np.outer(x, top2 - top1)
+                                + np.outer(np.sin(np.pi * x), [0, 0, 8.0]))
+    return mesh, r
+
+
+def test_minima_on_nodes_of_wrapped_strands_are_flat():
+    """Two plies of a double helix: minima of their distance sit on the
+    nodes, strict only by the tiny kinks of the C0 centreline.  They are
+    flat minima (a line contact: the Gauss pairs' job), not crossings: their
+    angle is the smooth one of the element pair's curves.  Counted as
+    crossings (a node held = strict, 90 degrees) they got point pairs, and
+    in the knot the minimum of two wrapped strands hopped from one strand's
+    node to the other's between Newton iterates 1.8e-7 apart; the pair
+    following it made Newton 2-cycle for ever.  The sharp node minimum of
+    a V over a crossing strand keeps its pair
+    (test_minimum_on_a_node_energy_force_tangent)."""
+    mesh, r = _double_helix()
+    md = min_distance(mesh, r, 1.0, 3 * np.pi)
+    assert 2.0 < md.distance < 2.1                    # in reach
+    assert crossing_pairs(mesh, r, 1.0, 3 * np.pi).size == 0
