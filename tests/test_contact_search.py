@@ -200,6 +200,28 @@ def test_a_slave_keeps_its_master_element_at_a_kink():
     assert closest(-dx, keep1)[0] == 1 and closest(-2.0 * tol / np.sin(alpha), keep1)[0] == 0
 
 
+def test_a_kept_master_element_is_an_orthogonal_projection():
+    """The kept master element must hold the slave's orthogonal projection
+    (interior): where the closest point has crossed the node onto the next
+    element, the last element's projection is clamped at its end, a hair
+    farther but not orthogonal (its normal tilted by ``dx / h``).  Kept, it
+    made the residual depend on the last evaluation: on the smooth contact
+    curve (no kink) the plectoneme's damped Newton 2-cycled between two
+    states 9e-5 apart (residual 0.032 <-> 0.044), one slave carrying 1420
+    held at the end of element 12 while its closest point was 5e-4 into
+    element 13; from a fresh search the same state had residual 0.008."""
+    h, tol, dx = 0.2, 1e-4, 1e-3                   # dx^2 / 2h = 2.5e-6 < tol
+    slave = 3 * 3 + 1
+    mesh, r = _kinked(0.0, h, dx)                  # a straight master: no kink
+    sl = slave_points(mesh)
+    keep = search_mod.Preference(np.zeros(sl.s.size, int), tol)
+    p = search(mesh, r, sl, reach=0.5, exclusion=0.3, prefer=keep)
+    k = np.flatnonzero(p.slave == slave)[0]
+    assert p.m_elem[k] == 1 and p.interior[k]
+    assert p.m_xi[k] == pytest.approx(dx, abs=1e-12) and p.distance[k] == pytest.approx(h, abs=1e-14)
+    np.testing.assert_allclose(p.normal[k], [0.0, 1.0, 0.0], atol=1e-13)
+
+
 @pytest.mark.parametrize("scene", ["hairpin", "plectoneme", "helix"])
 def test_neighbour_list_gives_the_search_without_it(scene):
     """A :class:`NeighbourList` keeps the broad phase's pairs while the
