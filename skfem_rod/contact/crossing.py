@@ -109,9 +109,27 @@ def _newton(C1, C2, u, v, iterations):
         both = fu & fv & (huu > 0) & (det > 1e-14 * (huu * hvv + 1e-300))
         safe = lambda h, g: np.where(h > 1e-14, g / np.where(h > 1e-14, h, 1.0),   # noqa: E731
                                      0.1 * np.sign(g))
-        du = np.where(both, (hvv * gu - huv * gv) / np.where(both, det, 1.0), safe(huu, gu))
-        dv = np.where(both, (huu * gv - huv * gu) / np.where(both, det, 1.0), safe(hvv, gv))
+        # both free but no minimum of the quadratic model (a saddle or a flat
+        # valley: wrapped strands): Newton on the Hessian shifted to positive
+        # definite, so the step runs down the valley to where it ends.  The
+        # coordinate steps used there before crept along it (updates of
+        # 1.5e-3 per iteration after 40 iterations in the knot's braid,
+        # which kept every call at the iteration limit)
+        shift = fu & fv & ~both
+        lmin = 0.5 * (huu + hvv) - np.sqrt(0.25 * (huu - hvv) ** 2 + huv * huv)
+        mu = np.where(shift, np.maximum(0.0, -lmin) + 1e-9 * np.abs(huu + hvv) + 1e-300, 0.0)
+        su, sv = huu + mu, hvv + mu
+        sdet = np.where(shift, su * sv - huv * huv, 1.0)
+        du = np.where(both, (hvv * gu - huv * gv) / np.where(both, det, 1.0),
+                      np.where(shift, (sv * gu - huv * gv) / sdet, safe(huu, gu)))
+        dv = np.where(both, (huu * gv - huv * gu) / np.where(both, det, 1.0),
+                      np.where(shift, (su * gv - huv * gu) / sdet, safe(hvv, gv)))
         du, dv = np.where(fu, du, 0.0), np.where(fv, dv, 0.0)
+        # the shifted step can be as long as the valley: at most a quarter
+        # element, so that its halvings below search along it (clipped to
+        # the element, a longer step turns aside and no halving descends)
+        big = np.where(shift, np.maximum(np.abs(du), np.abs(dv)) / 0.25, 1.0)
+        du, dv = du / np.maximum(big, 1.0), dv / np.maximum(big, 1.0)
         # safeguard: backtrack until the distance does not increase (stay
         # put if it always does: a minimum to round-off)
         f0 = _dot(D, D) * (1 + 1e-15) + 1e-300
@@ -131,7 +149,7 @@ def _newton(C1, C2, u, v, iterations):
         # stationary (the projected gradient at round-off) or stuck
         tol = 1e-13 * np.sqrt(_dot(D, D) * (_dot(X1, X1) + _dot(Y1, Y1))) + 1e-300
         stationary = (np.abs(np.where(fu, gu, 0.0)) <= tol) & (np.abs(np.where(fv, gv, 0.0)) <= tol)
-        moved = ((np.abs(nu - ua) >= 1e-15) | (np.abs(nv - va) >= 1e-15)) & ~stationary
+        moved = ((np.abs(nu - ua) >= 1e-12) | (np.abs(nv - va) >= 1e-12)) & ~stationary
         u[act], v[act] = nu, nv
         act = act[moved]
         if act.size == 0:
