@@ -607,9 +607,27 @@ def test_closest_points_run_down_a_saddle_valley(u0, v0):
     iteration, were up to 0.06 element away after 4000 iterations, and kept
     every call of the knot's crossing search at the 40-iteration limit."""
     from skfem_rod.contact.crossing import _newton
+    from skfem_rod.contact.search import curve_point
     C = monomial_coefficients(_BRAID_PAIR).transpose(1, 2, 0)
     C1, C2 = C[:, :, [0]], C[:, :, [1]]
-    best = closest_points(C1, C2, iterations=400)
     u, v, d = _newton(C1, C2, np.array([u0]), np.array([v0]), 8)
-    assert v[0] == 0.0 and abs(u[0] - 0.88346320194) < 1e-9
-    assert abs(d[0] - best[2][0]) <= 1e-15 and abs(u[0] - best[0][0]) < 1e-12
+    # no point of a dense sampling of both elements is closer
+    t = np.linspace(0.0, 1.0, 801)
+    P = curve_point(np.repeat(C1, t.size, axis=2), t)[0]
+    Q = curve_point(np.repeat(C2, t.size, axis=2), t)[0]
+    dense = np.sqrt(((P.T[:, None] - Q.T[None]) ** 2).sum(axis=2))
+    assert d[0] <= dense.min() + 1e-15
+    # and along the bound v = 0, sampled finely, nothing closer either, and
+    # the best sample next to it
+    t = np.linspace(0.0, 1.0, 100001)
+    edge = np.linalg.norm(curve_point(np.repeat(C1, t.size, axis=2), t)[0]
+                          - curve_point(C2, np.zeros(1))[0], axis=0)
+    assert d[0] <= edge.min() + 1e-15 and edge.min() - d[0] < 1e-12
+    # the minimum of the projected problem: on the bound v = 0 with the
+    # distance growing into the element, stationary in u
+    X, X1, _ = (a[:, 0] for a in curve_point(C1, u))
+    Y, Y1, _ = (a[:, 0] for a in curve_point(C2, v))
+    D = X - Y
+    scale = np.sqrt(D @ D * (X1 @ X1 + Y1 @ Y1))
+    assert v[0] == 0.0 and 0.0 < u[0] < 1.0
+    assert -(D @ Y1) > 0 and abs(D @ X1) <= 1e-12 * scale

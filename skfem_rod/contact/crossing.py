@@ -382,21 +382,22 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     fu, fv = (u > 0) & (u < 1), (v > 0) & (v < 1)
     n1, n2 = _dot(X1, X1), _dot(Y1, Y1)
     huu, hvv, huv = n1 + _dot(D, X2), n2 - _dot(D, Y2), -_dot(X1, Y1)
-    # effective angle: the strictness of the minimum in the free parameters
-    # (a parameter held on a node sits at a kink: strict)
+    det = huu * hvv - huv * huv
+    # a strict minimum in the free parameters (a parameter held on a node
+    # sits at a kink: strict there)
     both = fu & fv
-    sin2 = np.where(both, (huu * hvv - huv * huv) / np.maximum(huu * hvv, 1e-300),
-                    np.where(fu, huu / n1, np.where(fv, hvv / n2, 1.0)))
-    ok &= ~((fu & (huu <= 0)) | (fv & (hvv <= 0))) & (sin2 > 0)
-    # the angle that classifies the minimum (_classify): the smooth one of
-    # the element pair's curves, the held parameter included.  A minimum on
-    # a node is strict by the kink of the C0 centreline, but a kink of a
+    strict = np.where(both, det / np.maximum(huu * hvv, 1e-300),
+                      np.where(fu, huu / n1, np.where(fv, hvv / n2, 1.0)))
+    ok &= ~((fu & (huu <= 0)) | (fv & (hvv <= 0))) & (strict > 0)
+    # the effective angle that classifies it (_classify): the smooth one of
+    # the element pair's curves, a held parameter included.  A minimum on a
+    # node is strict by the kink of the C0 centreline, but a kink of a
     # converged curve is tiny: strands wrapped around each other (a flat
     # minimum, beta = 0) have their minimum hop from one strand's node to
     # the other's between states 1e-7 apart (measured in the knot: u = 1,
-    # v = 0.1175 <-> u = 0.8825, v = 0), and a pair following it 2-cycled
-    sin2 = np.where(both, sin2, np.clip((huu * hvv - huv * huv)
-                                        / np.maximum(np.abs(huu * hvv), 1e-300), 0.0, 1.0))
+    # v = 0.1175 <-> u = 0.8825, v = 0), and a pair following it 2-cycled.
+    # (For a strict interior minimum this is ``strict`` itself.)
+    sin2 = np.clip(det / np.maximum(np.abs(huu * hvv), 1e-300), 0.0, 1.0)
     k = np.flatnonzero(ok)
     k = k[_one_per_crossing(s[k], s_bar[k], dist[k],
                             TWIN * float(np.mean(np.diff(mesh.vertices))), held)]
