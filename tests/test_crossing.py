@@ -13,7 +13,8 @@ from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import law
 from skfem_rod.contact.crossing import (carry, closest_points, crossing_pairs, crossing_work,
                                         min_distance, sampled_angle)
-from skfem_rod.contact.search import monomial_coefficients, arc_distance, search, slave_points
+from skfem_rod.contact.search import (monomial_coefficients, arc_distance, curve_point, search,
+                                      slave_points)
 from skfem_rod.element import shape_functions
 from skfem_rod.mesh import RodMesh
 
@@ -21,11 +22,13 @@ EPS = 1.0
 H = 10.0 * EPS                    # element size
 
 
-def two_strands(angle, z0, u_cross=0.3, bend=0.0):
+def two_strands(angle, z0, u_cross=0.3, bend=0.0, side=-3 * H):
     """Three elements of length H: strand A (element 0) along x, a link
-    (element 1) looping high above, strand B (element 2) at ``angle`` to A
-    in a plane ``z0`` above it; they cross at ``u_cross`` of both strands
-    (between two Gauss points).  ``bend`` bows both strands."""
+    (element 1) looping high above and ``side`` across (away from B), strand
+    B (element 2) at ``angle`` to A in a plane ``z0`` above it; they cross
+    at ``u_cross`` of both strands (between two Gauss points).  ``bend``
+    bows both strands.  (With ``side = 0`` the link rises from A's end past
+    B's far end, at small angles within ``2 eps`` of it.)"""
     mesh = RodMesh(3 * H, 3)
     r = np.zeros((mesh.n_nodes, 3))
     d = np.array([np.cos(angle), np.sin(angle), 0.0])
@@ -35,7 +38,12 @@ def two_strands(angle, z0, u_cross=0.3, bend=0.0):
     B = np.outer((u - u_cross) * H, d) + [0, 0, z0] - np.outer(bow, [0, 0, 0.3])
     r[mesh.nodes[0]] = A
     r[mesh.nodes[2]] = B
-    link = A[1] + np.outer(u, B[0] - A[1]) + np.outer([0, 0, 1, 1], [0, 0, 3 * H])
+    # down from A's end and onto B's start from above: clear of both strands
+    # (a link rising from A's end passes B's far end, within 2 eps of it at
+    # small angles: side = 0 keeps that geometry)
+    down = -3 * H if side else 3 * H
+    link = A[1] + np.outer(u, B[0] - A[1]) + np.outer([0, 0, 1, 0], [0, side, down]) \
+        + np.outer([0, 0, 0, 1], [0, side, 3 * H])
     r[mesh.nodes[1, 2:]] = link[2:]
     return mesh, r
 
@@ -136,6 +144,31 @@ def test_crossing_between_gauss_points_is_detected(angle):
     assert np.degrees(sampled_angle(H, EPS)) == pytest.approx(0.935, abs=1e-3)
     mesh, r = two_strands(np.radians(0.5), 1.2 * EPS)
     assert crossing_pairs(mesh, r, EPS, np.pi * EPS).size == 0
+
+
+def test_every_minimum_of_an_element_pair_is_found():
+    """A link rising straight from A's end (``two_strands`` with ``side =
+    0``) passes B's far end at 5 degrees: the distance between elements 1
+    and 2 has a local minimum there besides their shared node (distance 0,
+    excluded).  The closest point per element pair saw the node only and hid
+    the minimum (an overlap of 1.4 eps; the fixture had it in every test at
+    small angles); every distinct minimum of an element pair is kept now.
+    Checked against dense sampling of both elements."""
+    mesh, r = two_strands(np.radians(5.0), 1.2 * EPS, side=0.0)
+    C = monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
+    xi = np.linspace(0.0, 1.0, 2001)
+    X = curve_point(np.repeat(C[:, :, [1]], xi.size, 2), xi)[0].T
+    Y = curve_point(np.repeat(C[:, :, [2]], xi.size, 2), xi)[0].T
+    D = np.linalg.norm(X[:, None] - Y[None], axis=2)
+    D[(xi[:, None] > 0.5) & (xi[None] < 0.5)] = np.inf          # away from the shared node
+    i, j = np.unravel_index(np.argmin(D), D.shape)
+    assert 0 < i < xi.size - 1 and 0 < j < xi.size - 1          # interior: a local minimum
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS)
+    link = np.flatnonzero((cp.e == 1) & (cp.f == 2))
+    assert link.size == 1
+    k = link[0]
+    assert abs(cp.u[k] - xi[i]) < 1e-3 and abs(cp.v[k] - xi[j]) < 1e-3
+    assert D[i, j] - 1e-3 <= cp.distance[k] <= D[i, j]      # samples 1/2000 element apart
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -70,22 +70,66 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+def _hessian(D, X1, X2, Y1, Y2):
+    """The Hessian ``(F_uu, F_vv, F_uv)`` of ``F = |X(u) - Y(v)|^2 / 2`` in
+    the curve parameters, from ``D = X - Y`` and the curves' first and second
+    derivatives (components on the first axis)."""
+    return _dot(X1, X1) + _dot(D, X2), _dot(Y1, Y1) - _dot(D, Y2), -_dot(X1, Y1)
+
+
 def closest_points(C1, C2, iterations=40, grid=7, starts=3):
     """Closest points ``(u, v)`` of cubic curve pairs with monomial
-    coefficients ``C1``, ``C2`` ``(4, 3, m)``; also their distance.  The
-    safeguarded Newton runs from the ``starts`` best points of a
-    ``grid x grid`` sampling (two local minima, e.g. a corner and an
-    interior point, are common) and the best result is kept."""
+    coefficients ``C1``, ``C2`` ``(4, 3, m)``; also their distance: the
+    best of :func:`local_minima`."""
+    k, u, v, d = local_minima(C1, C2, iterations, grid, starts)
+    first = np.r_[True, k[1:] != k[:-1]]            # sorted by pair, closest first
+    return u[first], v[first], d[first]
+
+
+def local_minima(C1, C2, iterations=40, grid=7, starts=3):
+    """The distinct local minima of the distance between cubic curve pairs
+    (monomial coefficients ``C1``, ``C2`` ``(4, 3, m)``): the safeguarded
+    Newton runs from the ``starts`` lowest local minima of a ``grid x
+    grid`` sampling (topped up with its lowest other points), and results
+    closer than :data:`TWIN` in both parameters to a closer one of the same
+    pair are dropped.  Returns ``(k, u, v, d)``: the pair index of each
+    minimum, its parameters and distance, at least one per pair.
+
+    Two wrapped strands can have two minima in one element pair, half an
+    element apart at nearly equal distances.  Keeping only the closer one
+    (as before) let the minimum hop between the two for state changes of
+    1e-6, and a crossing pair following it moved by half an element (the
+    plectoneme's winding, 2.06 turns: Newton failed at every pseudo-time
+    step down to 1e-8 of the first)."""
     m = C1.shape[2]
     t = np.linspace(0.0, 1.0, grid)
     P1 = np.stack([curve_point(C1, np.full(m, a))[0] for a in t])          # (g, 3, m)
     P2 = np.stack([curve_point(C2, np.full(m, a))[0] for a in t])
-    d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2).reshape(grid * grid, m)
-    k = np.argsort(d2, axis=0)[:starts].ravel()                      # (starts * m,)
+    d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2)                      # (g, g, m)
+    pad = np.pad(d2, ((1, 1), (1, 1), (0, 0)), constant_values=np.inf)
+    lowest = np.ones(d2.shape, bool)
+    for a in (0, 1, 2):
+        for b in (0, 1, 2):
+            if (a, b) != (1, 1):
+                lowest &= d2 <= pad[a:a + grid, b:b + grid]
+    d2 = d2.reshape(grid * grid, m)
+    rank = d2 + ~lowest.reshape(grid * grid, m) * (d2.max(axis=0) + 1.0)    # local minima first
+    k = np.argsort(rank, axis=0, kind="stable")[:starts].ravel()         # (starts * m,)
     u, v, d = _newton(np.tile(C1, starts), np.tile(C2, starts), t[k // grid], t[k % grid],
                       iterations)
-    best = np.argmin(d.reshape(starts, m), axis=0) * m + np.arange(m)
-    return u[best], v[best], d[best]
+    pair = np.repeat(np.arange(m)[None], starts, axis=0).ravel()
+    # closest first per pair; a result next to a closer kept one is dropped
+    order = np.lexsort((d, pair))
+    pair, u, v, d = pair[order], u[order], v[order], d[order]
+    at_rank = np.arange(pair.size) % starts                  # starts results per pair
+    keep = np.ones(pair.size, bool)
+    for j in range(1, starts):
+        at = np.flatnonzero(at_rank == j)
+        for o in range(1, j + 1):
+            prev = at - o
+            twin = keep[prev] & (np.abs(u[prev] - u[at]) < TWIN) & (np.abs(v[prev] - v[at]) < TWIN)
+            keep[at[twin]] = False
+    return pair[keep], u[keep], v[keep], d[keep]
 
 
 def _newton(C1, C2, u, v, iterations):
@@ -99,9 +143,7 @@ def _newton(C1, C2, u, v, iterations):
         Y, Y1, Y2 = curve_point(c2, va)
         D = X - Y
         gu, gv = _dot(D, X1), -_dot(D, Y1)
-        huu = _dot(X1, X1) + _dot(D, X2)
-        hvv = _dot(Y1, Y1) - _dot(D, Y2)
-        huv = -_dot(X1, Y1)
+        huu, hvv, huv = _hessian(D, X1, X2, Y1, Y2)
         # a parameter on a bound with the gradient pushing outward stays
         fu = ~(((ua <= 0) & (gu > 0)) | ((ua >= 1) & (gu < 0)))
         fv = ~(((va <= 0) & (gv > 0)) | ((va >= 1) & (gv < 0)))
@@ -253,13 +295,19 @@ class CrossingPairs:
         return self.e.size
 
 
-def _solve(mesh, e, f, r_el):
+def _solve(mesh, e, f, r_el, every=False):
+    """Closest points of the element pairs ``(e, f)``; with ``every``, each
+    distinct local minimum (:func:`local_minima`; ``e``, ``f`` repeated)."""
     C = monomial_coefficients(r_el).transpose(1, 2, 0)                 # (4, 3, ne)
-    u, v, dist = closest_points(C[:, :, e], C[:, :, f])
+    if every:
+        k, u, v, dist = local_minima(C[:, :, e], C[:, :, f])
+        e, f = e[k], f[k]
+    else:
+        u, v, dist = closest_points(C[:, :, e], C[:, :, f])
     vt = mesh.vertices
     s = vt[e] + u * (vt[e + 1] - vt[e])
     s_bar = vt[f] + v * (vt[f + 1] - vt[f])
-    return u, v, s, s_bar, dist, C
+    return e, f, u, v, s, s_bar, dist, C
 
 
 @dataclass
@@ -294,7 +342,7 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
         stop = min(e.size, start + max(64, start))
         stop = start + int(np.searchsorted(lb[start:stop], bound()))
         sl = slice(start, max(stop, start + 1))
-        u, v, s, s_bar, dist, _ = _solve(mesh, e[sl], f[sl], r_el)
+        _, _, u, v, s, s_bar, dist, _ = _solve(mesh, e[sl], f[sl], r_el)
         ok = (arc_distance(s, s_bar, period) >= exclusion) & (dist > 0) & (dist < reach)
         if ok.any():
             k = np.flatnonzero(ok)[np.argmin(dist[ok])]
@@ -369,7 +417,7 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     free flags, ``sin^2 beta``, tangents' ``|cos|`` (one per minimum: a
     node minimum is found from every element pair sharing the node)."""
     e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion)
-    u, v, s, s_bar, dist, C = _solve(mesh, e, f, r_el)
+    e, f, u, v, s, s_bar, dist, C = _solve(mesh, e, f, r_el, every=True)
     period = arclength_period(mesh)
     ok = (arc_distance(s, s_bar, period) >= exclusion) & (dist > 0) & (dist < reach)
     e, f, u, v, s, s_bar, dist = (a[ok] for a in (e, f, u, v, s, s_bar, dist))
@@ -381,7 +429,7 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     ok = _node_minimum(C, e, u, D, ne, closed) & _node_minimum(C, f, v, -D, ne, closed)
     fu, fv = (u > 0) & (u < 1), (v > 0) & (v < 1)
     n1, n2 = _dot(X1, X1), _dot(Y1, Y1)
-    huu, hvv, huv = n1 + _dot(D, X2), n2 - _dot(D, Y2), -_dot(X1, Y1)
+    huu, hvv, huv = _hessian(D, X1, X2, Y1, Y2)
     det = huu * hvv - huv * huv
     # a strict minimum in the free parameters (a parameter held on a node
     # sits at a kink: strict there)
@@ -760,9 +808,8 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
         return energy, force, None, fN
     Fpq = np.stack([kron(aX1, D) + kron(aD, X1), -(kron(aY1, D) + kron(aD, Y1))], axis=1)
     Fpp = np.empty((m, 2, 2))
-    Fpp[:, 0, 0] = np.sum(X1 * X1 + D * X2, axis=1)
-    Fpp[:, 1, 1] = np.sum(Y1 * Y1 - D * Y2, axis=1)
-    Fpp[:, 0, 1] = Fpp[:, 1, 0] = -np.sum(X1 * Y1, axis=1)
+    Fpp[:, 0, 0], Fpp[:, 1, 1], Fpp[:, 0, 1] = _hessian(D.T, X1.T, X2.T, Y1.T, Y2.T)
+    Fpp[:, 1, 0] = Fpp[:, 0, 1]
     # a parameter held on a node (the kink of the C0 centreline) does not
     # move: its row of F_pq goes and F_pp gets a unit row and column
     for k, free in ((0, pairs.u_free), (1, pairs.v_free)):
