@@ -30,7 +30,9 @@ The loop, in plain sight::
         mode and start the damped phase there, at lam_new
     failed: damped phase from the last equilibrium, load ramped to lam_new:
         repeat:
-            h = nominal step * min(1, dt / (LOAD_RAMP dt_0)), held at lam_new
+            h = nominal step * min(1, max(dt / (LOAD_RAMP dt_0), q)), held at
+                lam_new; q doubles after each step at rest (viscous force
+                within dynamics_tol) while the load still ramps, else 0
             implicit Euler step with viscosity 1/dt (Newton + AL: contact
                 enforced and true distance checked at every step)
             failed or strand passage: dt /= 2 (stop below DT_FLOOR dt_0)
@@ -295,18 +297,20 @@ class PseudoDynamics:
         opts, p = self.opts, self.problem
         dt = self.dt0 if self.dt is None else self.dt
         steps = tries = easy = at_dt = 0
+        quasi = 0.0                          # load fraction of the quasi-static ramp
         first = True
         why = "no damped step"
         next_polish = np.inf                 # viscous force that allows a polish
         while steps < opts.max_damped_steps:
             tries += 1
-            h = h_nominal * min(1.0, dt / (LOAD_RAMP * self.dt0))
+            h = h_nominal * min(1.0, max(dt / (LOAD_RAMP * self.dt0), quasi))
             t_new = t_target if t + h >= t_target - 1e-14 else t + h
             r1, R1, rep, ok = self.damped(r, R, t, t_new, dt)
             if not ok:
                 why = rep.reason
                 easy = at_dt = 0
                 dt *= 0.5
+                quasi *= 0.5
                 if dt < DT_FLOOR * self.dt0:
                     return None, (f"the damped steps stopped at pseudo-time {t:.6g} "
                                   f"(dt = {dt:.3g} after {steps} steps, {tries} tries): {why}")
@@ -330,6 +334,17 @@ class PseudoDynamics:
             if easy >= 2 or at_dt >= STALL:      # two easy steps, or a stalled dt
                 dt = min(2.0 * dt, DT_CEIL * self.dt0)
                 at_dt = 0
+            # at rest while the load still ramps: the steps are load steps
+            # (viscous force within dynamics_tol), and the load moves by a
+            # share of the nominal step that doubles with each such step
+            # instead of one tied to dt.  Tied to dt, a ramp whose dt Newton
+            # held at 0.03-0.06 of the first moved the load by 5e-6 per step
+            # (the plectoneme at 1.94 turns: 400 steps at rest, 9 % of the
+            # way to the next load step)
+            if t < t_target - 1e-14 and vis <= opts.dynamics_tol:
+                quasi = min(1.0, max(2.0 * quasi, dt / (LOAD_RAMP * self.dt0)))
+            else:
+                quasi = 0.0
             near = self.near_saddle(r)
             dt = min(dt, self.dt_saddle)
             if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:
