@@ -557,10 +557,10 @@ def coulomb_misfit(out, params, tolerance):
     rotational-friction scene with both laws on, forces ended 4 degrees off
     slips of 0.1 to 0.7 stick ranges while the multipliers moved by less
     than the tolerance (docs/friction.md)."""
-    p = params
     worst = 0.0
-    for gamma, mu, f, g, state in ((p.gamma_T, p.mu_T, out.force_T, out.slip_T, out.state_T),
-                                   (p.gamma_R, p.mu_R, out.force_R, out.slip_R, out.state_R)):
+    for _, coef, X in LAWS:
+        gamma, mu = getattr(params, coef), getattr(params, "mu_" + X)
+        f, g, state = (getattr(out, a + X) for a in ("force_", "slip_", "state_"))
         if gamma > 0:
             big = (state == law.SLIP) & (np.linalg.norm(g, axis=1)
                                          > tolerance * mu * gamma * out.fN)
