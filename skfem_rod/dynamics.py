@@ -31,8 +31,9 @@ The loop, in plain sight::
     failed: damped phase from the last equilibrium, load ramped to lam_new:
         repeat:
             h = nominal step * min(1, max(dt / (LOAD_RAMP dt_0), q)), held at
-                lam_new; q doubles after each step at rest (viscous force
-                within dynamics_tol) while the load still ramps, else 0
+                lam_new; q doubles after each step at rest (its viscous
+                force at most QUASI of its out-of-balance) while the load
+                still ramps, else 0
             implicit Euler step with viscosity 1/dt (Newton + AL: contact
                 enforced and true distance checked at every step)
             failed or strand passage: dt /= 2 (stop below DT_FLOOR dt_0)
@@ -80,6 +81,11 @@ DT_FLOOR = 1e-8
 SADDLE_DISTANCE = 4.0
 #: dt grows to at most this multiple of its first value
 DT_CEIL = 1e8
+#: a damped step is at rest (a load step) when the viscous force it ends
+#: with is at most this fraction of the largest out-of-balance of its Newton
+#: iterations: backward Euler leaves ``(W / dt) / (K + W / dt)`` of it, so
+#: dt is ten times the relaxation time ``W / K`` or more
+QUASI = 0.1
 #: Newton iterations of one damped step (it is cheaper to halve dt than to iterate)
 DAMPED_ITERATIONS = 10
 #: Newton iterations of a polish
@@ -335,13 +341,15 @@ class PseudoDynamics:
                 dt = min(2.0 * dt, DT_CEIL * self.dt0)
                 at_dt = 0
             # at rest while the load still ramps: the steps are load steps
-            # (viscous force within dynamics_tol), and the load moves by a
+            # (the viscous force a small part of the out-of-balance that
+            # Newton met: QUASI), and the load moves by a
             # share of the nominal step that doubles with each such step
             # instead of one tied to dt.  Tied to dt, a ramp whose dt Newton
             # held at 0.03-0.06 of the first moved the load by 5e-6 per step
             # (the plectoneme at 1.94 turns: 400 steps at rest, 9 % of the
             # way to the next load step)
-            if t < t_target - 1e-14 and vis <= opts.dynamics_tol:
+            jump = QUASI * max(rep.history, default=0.0)
+            if t < t_target - 1e-14 and vis * p.force_scale(ev) <= jump:
                 quasi = min(1.0, max(2.0 * quasi, dt / (LOAD_RAMP * self.dt0)))
             else:
                 quasi = 0.0
