@@ -83,8 +83,9 @@ SADDLE_DISTANCE = 4.0
 DT_CEIL = 1e8
 #: a damped step is at rest (a load step) when the viscous force it ends
 #: with is at most this fraction of the largest out-of-balance of its Newton
-#: iterations: backward Euler leaves ``(W / dt) / (K + W / dt)`` of it, so
-#: dt is ten times the relaxation time ``W / K`` or more
+#: iterations (over all its Uzawa passes): backward Euler leaves
+#: ``(W / dt) / (K + W / dt)`` of it, so dt is ten times the relaxation time
+#: ``W / K`` or more
 QUASI = 0.1
 #: Newton iterations of one damped step (it is cheaper to halve dt than to iterate)
 DAMPED_ITERATIONS = 10
@@ -209,12 +210,20 @@ class PseudoDynamics:
 
     def damped(self, r, R, t, t_new, dt):
         """One implicit Euler step ``t -> t_new`` with viscosity ``1 / dt``
-        from ``(r, R)``.  Returns ``(r, R, report, ok)``; a rejected step
-        leaves the multipliers as they were."""
+        from ``(r, R)``.  Returns ``(r, R, report, ok, peak)``, ``peak`` the
+        largest residual norm of the Newton iterations of all its Uzawa
+        passes (the out-of-balance the step met: the report holds the last
+        pass's only); a rejected step leaves the multipliers as they were."""
         p = self.problem
         lam, lam_new = self.lam_of(t), self.lam_of(t_new)
         saved = self.save()
-        inner = viscous_inner(p, self.W, 1.0 / dt, r, R)
+        viscous = viscous_inner(p, self.W, 1.0 / dt, r, R)
+        peaks = []
+
+        def inner(r0, R0, lam0, opts, prescribed=None):
+            out = viscous(r0, R0, lam0, opts, prescribed=prescribed)
+            peaks.append(max(out[3].history, default=0.0))
+            return out
         presc = p.prescribed(lam_new - lam)
         if self.opts.dynamics_uzawa:
             r1, R1, rep = al_step(p, r, R, lam_new, presc, self.inner_opts, inner=inner)
@@ -231,7 +240,7 @@ class PseudoDynamics:
         if not ok:
             self.restore(saved)
         self.log.add("damped", rep, ok, t_new, p)
-        return r1, R1, rep, ok
+        return r1, R1, rep, ok, max(peaks, default=0.0)
 
     def polish(self, r, R, t):
         """Newton + AL with the viscous term off at ``lam(t)`` from a damped
@@ -311,7 +320,7 @@ class PseudoDynamics:
             tries += 1
             h = h_nominal * min(1.0, max(dt / (LOAD_RAMP * self.dt0), quasi))
             t_new = t_target if t + h >= t_target - 1e-14 else t + h
-            r1, R1, rep, ok = self.damped(r, R, t, t_new, dt)
+            r1, R1, rep, ok, peak = self.damped(r, R, t, t_new, dt)
             if not ok:
                 why = rep.reason
                 easy = at_dt = 0
@@ -348,8 +357,7 @@ class PseudoDynamics:
             # held at 0.03-0.06 of the first moved the load by 5e-6 per step
             # (the plectoneme at 1.94 turns: 400 steps at rest, 9 % of the
             # way to the next load step)
-            jump = QUASI * max(rep.history, default=0.0)
-            if t < t_target - 1e-14 and vis * p.force_scale(ev) <= jump:
+            if t < t_target - 1e-14 and vis * p.force_scale(ev) <= QUASI * peak:
                 quasi = min(1.0, max(2.0 * quasi, dt / (LOAD_RAMP * self.dt0)))
             else:
                 quasi = 0.0

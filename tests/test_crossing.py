@@ -22,13 +22,14 @@ EPS = 1.0
 H = 10.0 * EPS                    # element size
 
 
-def two_strands(angle, z0, u_cross=0.3, bend=0.0, side=-3 * H):
+def two_strands(angle, z0, u_cross=0.3, bend=0.0, rising_link=False):
     """Three elements of length H: strand A (element 0) along x, a link
-    (element 1) looping high above and ``side`` across (away from B), strand
-    B (element 2) at ``angle`` to A in a plane ``z0`` above it; they cross
-    at ``u_cross`` of both strands (between two Gauss points).  ``bend``
-    bows both strands.  (With ``side = 0`` the link rises from A's end past
-    B's far end, at small angles within ``2 eps`` of it.)"""
+    (element 1) leaving A's end downward and away from B and coming onto B's
+    start from above, strand B (element 2) at ``angle`` to A in a plane
+    ``z0`` above it; they cross at ``u_cross`` of both strands (between two
+    Gauss points).  ``bend`` bows both strands.  ``rising_link``: the link
+    rises straight from A's end instead, past B's far end (within ``2 eps``
+    of it at small angles)."""
     mesh = RodMesh(3 * H, 3)
     r = np.zeros((mesh.n_nodes, 3))
     d = np.array([np.cos(angle), np.sin(angle), 0.0])
@@ -38,12 +39,9 @@ def two_strands(angle, z0, u_cross=0.3, bend=0.0, side=-3 * H):
     B = np.outer((u - u_cross) * H, d) + [0, 0, z0] - np.outer(bow, [0, 0, 0.3])
     r[mesh.nodes[0]] = A
     r[mesh.nodes[2]] = B
-    # down from A's end and onto B's start from above: clear of both strands
-    # (a link rising from A's end passes B's far end, within 2 eps of it at
-    # small angles: side = 0 keeps that geometry)
-    down = -3 * H if side else 3 * H
-    link = A[1] + np.outer(u, B[0] - A[1]) + np.outer([0, 0, 1, 0], [0, side, down]) \
-        + np.outer([0, 0, 0, 1], [0, side, 3 * H])
+    lift = [[0, 0, 3 * H], [0, 0, 3 * H]] if rising_link else \
+        [[0, -3 * H, -3 * H], [0, -3 * H, 3 * H]]          # interior nodes u = 1/3, 2/3
+    link = A[1] + np.outer(u, B[0] - A[1]) + np.r_[np.zeros((2, 3)), lift]
     r[mesh.nodes[1, 2:]] = link[2:]
     return mesh, r
 
@@ -147,14 +145,14 @@ def test_crossing_between_gauss_points_is_detected(angle):
 
 
 def test_every_minimum_of_an_element_pair_is_found():
-    """A link rising straight from A's end (``two_strands`` with ``side =
-    0``) passes B's far end at 5 degrees: the distance between elements 1
-    and 2 has a local minimum there besides their shared node (distance 0,
+    """A link rising straight from A's end (``two_strands`` with
+    ``rising_link``) passes B's far end at 5 degrees: the distance between
+    elements 1 and 2 has a local minimum there besides their shared node (distance 0,
     excluded).  The closest point per element pair saw the node only and hid
     the minimum (an overlap of 1.4 eps; the fixture had it in every test at
     small angles); every distinct minimum of an element pair is kept now.
     Checked against dense sampling of both elements."""
-    mesh, r = two_strands(np.radians(5.0), 1.2 * EPS, side=0.0)
+    mesh, r = two_strands(np.radians(5.0), 1.2 * EPS, rising_link=True)
     C = monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
     xi = np.linspace(0.0, 1.0, 2001)
     X = curve_point(np.repeat(C[:, :, [1]], xi.size, 2), xi)[0].T
@@ -162,7 +160,9 @@ def test_every_minimum_of_an_element_pair_is_found():
     D = np.linalg.norm(X[:, None] - Y[None], axis=2)
     D[(xi[:, None] > 0.5) & (xi[None] < 0.5)] = np.inf          # away from the shared node
     i, j = np.unravel_index(np.argmin(D), D.shape)
-    assert 0 < i < xi.size - 1 and 0 < j < xi.size - 1          # interior: a local minimum
+    assert 0 < i < xi.size - 1 and 0 < j < xi.size - 1
+    around = D[i - 1:i + 2, j - 1:j + 2].ravel()
+    assert np.all(np.isfinite(around)) and np.sum(around <= D[i, j]) == 1   # a strict local minimum
     cp = crossing_pairs(mesh, r, EPS, np.pi * EPS)
     link = np.flatnonzero((cp.e == 1) & (cp.f == 2))
     assert link.size == 1
