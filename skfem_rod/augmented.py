@@ -111,7 +111,10 @@ def augmented_lagrangian(problem, solve_pass):
             m.tangential, m.rotational = updates["tangential"], updates["rotational"]
         if ce.crossing is not None:
             old = carry_crossing(m, ce.crossing)
-            m.crossing_key, m.crossing = ce.crossing.key, uzawa_update(dc, old, c.crossing_penalty)
+            # the force each pair applied: a fading pair gives its
+            # multiplier up with its weight (docs/crossing-contact.md, 4)
+            m.crossing_key = ce.crossing.key
+            m.crossing = ce.crossing.weight * uzawa_update(dc, old, c.crossing_penalty)
         uzawa += 1
 
 

@@ -308,10 +308,12 @@ class Problem:
         return self.to_basis(self.f_dist + f1 - f0)
 
     # -- evaluation --------------------------------------------------------
-    def evaluate(self, r, R, lam, tangent=True, friction=None):
+    def evaluate(self, r, R, lam, tangent=True, friction=None, frozen=False):
         """:class:`Evaluation` at ``(r, R)`` and load factor ``lam``;
         ``friction=False`` leaves the friction work out (default: as the
-        problem has it, :attr:`friction`)."""
+        problem has it, :attr:`friction`); ``frozen``: the crossing pairs'
+        tangent at frozen weights (no weight derivative,
+        :func:`skfem_rod.contact.crossing.crossing_work`)."""
         rod = self.rod
         t0 = time.perf_counter()
         iw = internal_work(self.mesh, r, R, rod.eps0, rod.C, tangent=tangent, Z=self.Z)
@@ -328,7 +330,7 @@ class Problem:
             K = K + Kp
         ce = None
         if self.contact is not None:
-            ce, fc, Kc = self._contact(r, R, tangent, friction)
+            ce, fc, Kc = self._contact(r, R, tangent, friction, frozen)
             res = res + fc
             if tangent:
                 K = K + Kc
@@ -344,7 +346,7 @@ class Problem:
             K = K.tocsc()
         return Evaluation(residual=res, tangent=K, external=f_ext, internal=iw, contact=ce)
 
-    def _contact(self, r, R, tangent, friction=None):
+    def _contact(self, r, R, tangent, friction=None, frozen=False):
         """Search, normal contact work and (``friction``, default
         :attr:`friction`) friction work, on the contact curve (the rod's
         centreline, or the smooth curve of :attr:`contact_curve`, pulled
@@ -352,17 +354,18 @@ class Problem:
         friction = self.friction if friction is None else friction
         cc = self.contact_curve
         if cc is None:
-            return self._contact_on(self.mesh, r, R, self.reference, tangent, friction)
+            return self._contact_on(self.mesh, r, R, self.reference, tangent, friction, frozen)
         ref = None if self.reference is None else (cc.positions(self.reference[0]),
                                                    cc.rotations(self.reference[1]))
         ce, force, K = self._contact_on(cc.mesh, cc.positions(r), cc.rotations(R), ref,
-                                        tangent, friction)
+                                        tangent, friction, frozen)
         return ce, cc.force(force), (cc.tangent(K) if tangent else None)
 
-    def _contact_on(self, mesh, r, R, reference, tangent, friction):
+    def _contact_on(self, mesh, r, R, reference, tangent, friction, frozen=False):
         """Contact work on the curve of ``mesh`` at nodal ``(r, R)``, with
         the friction work when ``friction`` (slips measured from
-        ``reference``)."""
+        ``reference``); ``frozen``: crossing weights held fixed in the
+        tangent."""
         from .contact.assembly import contact_work
         from .contact.search import Preference, search
         c, m, tm = self.contact, self.multipliers, self.timers
@@ -407,7 +410,7 @@ class Problem:
             self.crossing_track.record(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
-                                            c.radius, tangent)
+                                            c.radius, tangent, fade=not frozen)
             force = force + fc
             if tangent:
                 K = K + Kc
@@ -493,11 +496,18 @@ class Problem:
         off as a saddle.  The frictionless test is sufficient, not
         necessary: friction only dissipates, so a state stable without it is
         stable with it, but it may hold one the frictionless rod would
-        leave (docs/stability.md)."""
-        ev = self.evaluate(r, R, lam, tangent=not self.friction)
+        leave (docs/stability.md).
+
+        Likewise the crossing pairs' weights are held fixed in it: a fading
+        pair's force is no energy's gradient, and the symmetrized part of
+        its weight's derivative (the pair's force over the rise at the
+        threshold, about 1e-4 eps) has eigenvalues of both signs far above
+        the rod's; in the plectoneme it made a stable state a saddle with
+        lowest eigenvalue -8e5 (docs/crossing-contact.md)."""
+        ev = self.evaluate(r, R, lam, tangent=not self.friction, frozen=True)
         residual = self.residual_norm(ev) / self.force_scale(ev)
         if self.friction:
-            ev = self.evaluate(r, R, lam, friction=False)
+            ev = self.evaluate(r, R, lam, friction=False, frozen=True)
         idx = np.flatnonzero(self.free)
         Kf = ev.tangent[idx][:, idx].tocsc()
         return Kf, residual

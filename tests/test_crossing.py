@@ -11,8 +11,8 @@ from scipy.spatial import cKDTree
 
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import law
-from skfem_rod.contact.crossing import (carry, closest_points, crossing_pairs, crossing_work,
-                                        min_distance, sampled_angle)
+from skfem_rod.contact.crossing import (PairThreshold, carry, closest_points, crossing_pairs,
+                                        crossing_work, min_distance, sampled_angle)
 from skfem_rod.contact.search import (monomial_coefficients, arc_distance, curve_point, search,
                                       slave_points)
 from skfem_rod.element import shape_functions
@@ -329,7 +329,7 @@ def press(angle, h, k=1.0, mu_gp=1.0, mu_cp=0.2, tol=1e-3, max_uzawa=40):
         new_gp = np.zeros_like(lam_gp)
         new_gp[pairs.slave] = law.uzawa_update(dg, lam_gp[pairs.slave], mu_gp)
         lam_gp = new_gp
-        key, lam = cp.key, law.uzawa_update(dc, lc, mu_cp)
+        key, lam = cp.key, cp.weight * law.uzawa_update(dc, lc, mu_cp)   # as augmented.py
     return out
 
 
@@ -356,14 +356,16 @@ def test_pressed_crossing_any_angle_any_element_size(degrees, h):
 
 # -- the new terms against finite differences ---------------------------------
 
-def _fd_check(mesh, r, held, seed=0, mu=0.1):
+def _fd_check(mesh, r, held, seed=0, mu=0.1, threshold=PairThreshold()):
     """Energy -> force -> tangent of the crossing pairs at ``r`` with the
     held set ``held`` fixed (as within one Newton solve), central
-    differences along a random direction of the positions."""
+    differences along a random direction of the positions.  Pairs at full
+    weight derive from an energy (symmetric tangent); a fading pair's
+    force does not (its weight's derivative: docs/crossing-contact.md)."""
     rng = np.random.default_rng(seed)
 
     def work(rr, tangent=True):
-        cp = crossing_pairs(mesh, rr, EPS, np.pi * EPS, held=held)
+        cp = crossing_pairs(mesh, rr, EPS, np.pi * EPS, threshold=threshold, held=held)
         lam = carry(held[0], held[1], cp.key)
         return cp, crossing_work(mesh, rr, cp, lam, mu, EPS, tangent)
 
@@ -374,38 +376,95 @@ def _fd_check(mesh, r, held, seed=0, mu=0.1):
     h = 1e-6
     (cpp, (Ep, fp, _, _)), (cpm, (Em, fm, _, _)) = work(shift(h), False), work(shift(-h), False)
     assert cpp.size == cpm.size == cp.size
-    assert abs((Ep - Em) / (2 * h) - f @ d) <= 1e-7 * abs(f @ d)
     assert np.abs((fp - fm) / (2 * h) - K @ d).max() <= 1e-6 * np.abs(K @ d).max()
-    assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
+    if np.all(cp.weight == 1.0):
+        assert abs((Ep - Em) / (2 * h) - f @ d) <= 1e-7 * abs(f @ d)
+        assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
     return cp, fN
 
 
-def test_held_flat_minimum_energy_force_tangent():
-    """Near-parallel strands (0.5 degrees: below the threshold angle, no new
-    pair) whose minimum carries a multiplier: a point-to-curve pair from the
-    key's material point (u held, projection free)."""
+def test_near_parallel_strands_get_no_pair_even_when_held():
+    """Near-parallel strands (0.5 degrees: a line contact, the Gauss
+    points' job): the distance hardly rises at the probes, the minimum's
+    weight is 0 and it gets no pair, loaded key or not."""
     mesh, r = two_strands(np.radians(0.5), 1.5 * EPS)
     assert crossing_pairs(mesh, r, EPS, np.pi * EPS).size == 0
     md = min_distance(mesh, r, EPS, np.pi * EPS)
     held = (np.array([[md.s, md.s_bar, H, 0.0, -1.0]]), np.array([0.4]))
-    cp, fN = _fd_check(mesh, r, held)
-    assert cp.size == 1 and not cp.u_free[0] and cp.v_free[0] and fN[0] > 0
-    assert cp.s[0] == pytest.approx(md.s, abs=1e-12)          # the key's material point
-    assert carry(held[0], held[1], cp.key)[0] == 0.4          # its own multiplier
+    assert crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held).size == 0
 
 
-def test_held_pair_without_its_minimum_energy_force_tangent():
-    """A loaded pair whose minimum has gone (a key far from any minimum)
-    stays at its material point until its multiplier is released."""
-    mesh, r = two_strands(np.pi / 3, 1.5 * EPS, bend=0.05)
-    md = min_distance(mesh, r, EPS, np.pi * EPS)
-    held = (np.array([[md.s - 0.15 * H, md.s_bar + 1.5 * H, 0.1 * H, 0.0, -1.0]]),
-            np.array([0.4]))
-    cp, fN = _fd_check(mesh, r, held, seed=1)
-    assert cp.size == 2                               # the new minimum too
-    assert not cp.u_free[0] and cp.s[0] == pytest.approx(md.s - 0.15 * H)
-    released = (held[0], np.array([0.0]))
-    assert crossing_pairs(mesh, r, EPS, np.pi * EPS, held=released).size == 1
+#: the threshold of the fading tests: ``beta_h`` = 31 degrees at elements
+#: of 10 eps (tolerance 1), so that 25-30 degree crossings fade
+_WIDE = PairThreshold(min_angle=np.pi / 3, n_slave=3, tolerance=1.0)
+
+
+@pytest.mark.parametrize("degrees, seed", [(26.0, 0), (28.0, 1), (29.5, 2)])
+def test_fading_pair_force_tangent(degrees, seed):
+    """A crossing just below the threshold angle acts with a weight between
+    0 and 1; its tangent, with the weight's derivative through the lowest
+    probe (its own dofs and the minimum's motion), against central
+    differences of the force.  The weight makes the force no energy's
+    gradient: the tangent is not symmetric there."""
+    mesh, r = two_strands(np.radians(degrees), 1.5 * EPS, bend=0.03)
+    r = r + 1e-3 * EPS * np.random.default_rng(seed).normal(size=r.shape)
+    cp, fN = _fd_check(mesh, r, (np.zeros((0, 5)), np.zeros(0)), seed=seed, mu=1.0,
+                       threshold=_WIDE)
+    assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
+    K = crossing_work(mesh, r, cp, np.zeros(1), 1.0, EPS)[2]
+    assert abs(K - K.T).max() > 1e-6 * abs(K).max()
+
+
+def test_the_weight_rises_continuously_with_the_angle():
+    """From 20 to 35 degrees in steps of 0.05 degree: the weight is 0 below
+    0.65 of the threshold's sine (the rise at the probes is below half the
+    threshold's there), 1 above the threshold, monotone, and never jumps
+    (the largest step change is what its slope allows)."""
+    angles = np.radians(np.arange(20.0, 35.0, 0.05))
+    w = np.array([crossing_pairs(*two_strands(a, 1.5 * EPS), EPS, np.pi * EPS,
+                                 threshold=_WIDE).weight.tolist() or [0.0] for a in angles])[:, 0]
+    beta = _WIDE.angle(H, EPS)
+    assert np.all(w[np.sin(angles) < 0.65 * np.sin(beta)] == 0.0)
+    assert np.all(w[angles > beta] == 1.0)
+    assert np.all(np.diff(w) >= -1e-12)
+    assert np.abs(np.diff(w)).max() < 0.05
+
+
+def test_a_crossing_sliding_over_a_node_keeps_its_force_continuous():
+    """Strand B slides along strand A across A's middle node (a 40-degree
+    crossing in the fade zone of the wide threshold): the minimum changes
+    its element pair there, and the pair's weight and force do not jump
+    (the probes sit at fixed arclengths from the minimum, whatever element
+    holds it).  Weighed by the Gauss points of the minimum's own elements,
+    the weight jumped from 0.59 to 0.998 in the plectoneme."""
+    mesh = RodMesh(4 * H, 4)
+    u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+    thr = PairThreshold(min_angle=np.radians(30.0), n_slave=3, tolerance=1.0)
+
+    def state(x0):
+        r = np.zeros((mesh.n_nodes, 3))
+        r[mesh.nodes[0]] = np.outer(u - 1, [H, 0, 0])
+        r[mesh.nodes[1]] = np.outer(u, [H, 0, 0])
+        d = np.array([np.cos(0.45), np.sin(0.45), 0.0])
+        r[mesh.nodes[3]] = np.outer((u - 0.5) * H, d) + [x0, 0, 1.9 * EPS]
+        r[mesh.nodes[2, 2:]] = [[H, -H, 3 * H], [0, -H, 3 * H]]
+        return r
+
+    xs = np.linspace(-0.02, 0.02, 81) * H
+    F, W, E = [], [], []
+    for x0 in xs:
+        r = state(x0)
+        cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=thr)
+        assert cp.size == 1
+        F.append(crossing_work(mesh, r, cp, np.zeros(1), 1.0, EPS, tangent=False)[1])
+        W.append(cp.weight[0])
+        E.append(cp.e[0])
+    F, W = np.array(F), np.array(W)
+    assert set(E) == {0, 1}                            # it crossed the node
+    assert 0.0 < W.min() and W.max() < 1.0             # in the fade zone throughout
+    step = np.abs(np.diff(F, axis=0)).max()
+    assert step < 0.02 * np.abs(F).max()
+    assert np.abs(np.diff(W)).max() < 0.02
 
 
 def test_minimum_on_a_node_energy_force_tangent():
@@ -504,37 +563,12 @@ def test_twin_minima_at_a_kink_are_one_crossing():
     assert s0.e[0] == 1 and cp.size == 1 and cp.e[0] == 0
 
 
-@pytest.mark.parametrize("key_sharp, beta_ratio, lam, expect_free", [
-    (True, 0.98, 0.4, True),     # sharp at the update, just below now: stays sharp
-    (False, 1.02, 0.4, False),   # flat at the update, just above now: stays flat
-    (True, 0.4, 0.4, False),     # far below (under KEEP_SHARP): flat
-    (False, 1.02, 0.0, True),    # unloaded: as a new pair would be
-])
-def test_held_pair_keeps_its_form_during_a_solve(key_sharp, beta_ratio, lam, expect_free):
-    """A held pair acts sharp (both parameters free) or flat (held at a grid
-    point) as decided at the multiplier update (the key's angle against the
-    threshold), not as the minimum's angle moves about the threshold from
-    one Newton iterate to the next; a minimum far flatter than the
-    threshold is held flat whatever the key says."""
-    from skfem_rod.contact.crossing import PairThreshold
-    mesh, r = two_strands(np.radians(10.0), 1.5 * EPS)
-    beta = crossing_pairs(mesh, r, EPS, np.pi * EPS).beta[0]
-    threshold = PairThreshold(min_angle=beta / beta_ratio, n_slave=3, tolerance=1.0)
-    assert threshold.angle(H, EPS) == pytest.approx(beta / beta_ratio)   # min_angle rules
-    md = min_distance(mesh, r, EPS, np.pi * EPS)
-    key_beta = 1.5 * beta / beta_ratio if key_sharp else 0.5 * beta / beta_ratio
-    held = (np.array([[md.s, md.s_bar, H, key_beta, -1.0]]), np.array([lam]))
-    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=threshold, held=held)
-    assert cp.size == 1
-    assert bool(cp.u_free[0] and cp.v_free[0]) == expect_free
-
-
 def test_a_held_pair_follows_its_minimum_from_the_tracked_place():
     """A minimum that moved beyond its key's carry radius within a solve
     is still followed from the place tracked at the last evaluation
-    (:class:`CrossingTrack`): one pair, both parameters free; from the key
-    alone the held pair acts at its own material point beside a new pair
-    at the minimum."""
+    (:class:`CrossingTrack`): its pair is the held one (the key's index);
+    from the key alone it is a new pair, which :func:`carry` feeds by place
+    (the old key lies within the new pair's carry radius)."""
     from skfem_rod.contact.crossing import CrossingTrack
     mesh, r = two_strands(np.pi / 3, 1.5 * EPS)
     md = min_distance(mesh, r, EPS, np.pi * EPS)
@@ -542,36 +576,17 @@ def test_a_held_pair_follows_its_minimum_from_the_tracked_place():
     key = np.array([[md.s - 0.15 * H, md.s_bar + 0.15 * H, 0.1 * H, beta, -1.0]])
     lam = np.array([0.4])
     apart = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=(key, lam))
-    assert apart.size == 2 and not apart.u_free[0]
+    assert apart.size == 1 and apart.key[0, 4] == -1
+    assert carry(key, lam, apart.key)[0] == 0.4
     track = CrossingTrack()
     held = track.held(key, lam)
     track.places[:] = [md.s - 0.05 * H, md.s_bar + 0.05 * H]     # the last evaluation's place
     cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held)
-    assert cp.size == 1 and cp.u_free[0] and cp.v_free[0] and cp.key[0, 4] == 0
+    assert cp.size == 1 and cp.key[0, 4] == 0 and carry(key, lam, cp.key)[0] == 0.4
     track.record(cp)
     assert track.places[0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
     assert track.held(key, lam)[2] is track.places                # same keys: kept
     assert track.held(key.copy(), lam)[2][0, 0] == key[0, 0]     # new keys: reset
-
-
-def test_a_held_pair_whose_minimum_is_gone_acts_where_it_was_last_seen():
-    """A loaded held pair whose minimum has gone acts at the place tracked
-    at the last evaluation (where the minimum vanished), not at its key:
-    the force does not jump where a minimum disappears within a solve."""
-    from skfem_rod.contact.crossing import CrossingTrack
-    mesh, r = two_strands(np.pi / 3, 1.5 * EPS, bend=0.05)
-    md = min_distance(mesh, r, EPS, np.pi * EPS)
-    key = np.array([[md.s - 0.15 * H, md.s_bar + 1.5 * H, 0.1 * H, 0.0, -1.0]])
-    track = CrossingTrack()
-    held = track.held(key, np.array([0.4]))
-    seen = [md.s - 0.25 * H, md.s_bar + 1.4 * H]
-    track.places[:] = seen
-    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held)
-    i = np.flatnonzero(cp.key[:, 4] == 0)
-    assert i.size == 1 and not cp.u_free[i[0]]
-    assert cp.s[i[0]] == pytest.approx(seen[0], abs=1e-12)
-    track.record(cp)
-    assert track.places[0, 0] == pytest.approx(seen[0], abs=1e-12)   # stays there
 
 
 def _double_helix(n=12, a=1.05, pitch=12.0, link=3):

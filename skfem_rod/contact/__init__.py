@@ -93,11 +93,12 @@ class ContactOptions:
         crossing strands (:mod:`.crossing`); default False.
     crossing_penalty : compliance of the crossing pairs' point law (length
         per unit force); default ``penalty / radius``.
-    crossing_angle : cap of the angle above which a strict minimum of the
-        strand distance gets a crossing pair (radians, default 15 degrees):
-        pairs are added above ``min(crossing_angle, beta_h)``, ``beta_h``
+    crossing_angle : cap of the angle at which a strict minimum of the
+        strand distance gets a crossing pair of full weight (radians,
+        default 15 degrees): ``min(crossing_angle, beta_h)``, ``beta_h``
         the angle below which the Gauss slave points alone hold the
-        minimum (:func:`.crossing.sampled_angle`, docs/crossing-contact.md).
+        minimum (:func:`.crossing.sampled_angle`), measured at the sampling
+        scale; flatter minima fade out (docs/crossing-contact.md).
     """
     radius: float = _field(MISSING, "number", "contact radius eps (default: section radius)",
                            lo=0.0)
@@ -138,9 +139,10 @@ class ContactOptions:
     crossing_penalty: float = _field(None, "number", "compliance of the crossing pairs "
                                                      "(default penalty / eps)", lo=0.0)
     crossing_angle: float = _field(float(np.radians(15.0)), "number",
-                                   "cap of the angle above which a distance minimum gets a "
-                                   "crossing pair (rad, below pi/2; the Gauss-sampling bound "
-                                   "beta_h lowers it)", lo=0.0, hi=float(np.pi / 2))
+                                   "cap of the angle at which a distance minimum gets a "
+                                   "crossing pair of full weight (rad, below pi/2; the "
+                                   "Gauss-sampling bound beta_h lowers it)", lo=0.0,
+                                   hi=float(np.pi / 2))
 
     @property
     def friction(self):

@@ -22,27 +22,28 @@ excluded arclength (periodic on a closed rod) go before they are solved,
 closest points closer than ``exclusion`` in arclength are dropped (as in
 :mod:`.search`).  :func:`min_distance` solves the pairs in order of their
 lower bound and stops at the closest admissible distance found (branch and
-bound).  The design (thresholds, held pairs, why) is docs/crossing-contact.md.
+bound).  The design (thresholds, weights, why) is docs/crossing-contact.md.
 
 * :func:`min_distance`: the smallest distance between non-neighbouring
   strands, with its arclengths (``s, s_bar``): the true penetration
   ``2 eps - distance`` of a state, whatever the slave density.
 * :func:`crossing_pairs`: a point pair at every strict local minimum of
   the strand distance (interior, or on a node held by the kink of the C0
-  centreline) whose effective angle is above the angle the Gauss slave
-  points sample to the tolerance (:func:`sampled_angle`), both parameters
-  free; minima that carry a multiplier (``held``) keep acting below it, at
-  the grid point nearest the minimum (a point-to-curve pair), and where the
-  minimum is gone at their material point, until the multiplier is
-  released.  Multipliers are carried by place, ``(s, s_bar)``
-  (:func:`carry`), not by element pair.
+  centreline), both parameters free, with a weight (:func:`_weigh`): how
+  far the distance rises at probes half a Gauss-point gap before and after
+  the minimum on either strand, against a minimum at the angle the Gauss
+  slave points sample to the tolerance (:func:`sampled_angle`).  1 at a
+  crossing, 0 at a line contact (the Gauss pairs' job), continuous where a
+  minimum hops along a flat valley, crosses a node, forms or vanishes.
+  Multipliers are carried by place, ``(s, s_bar)`` (:func:`carry`), not
+  by element pair.
 * :func:`crossing_work`: a point force at the pair, gap
   ``d = 2 eps - |X(u) - Y(v)|`` and the augmented-Lagrangian law of
   :mod:`.law` (``f = [d + mu lambda]_+ / mu``, a force, ``mu`` a compliance
-  per unit force), energy ``phi(d)``; residual and exact tangent with the
+  per unit force) times the weight; residual and exact tangent with the
   free parameters' closest-point conditions differentiated (the reduced
-  Hessian ``F_qq - F_qp F_pp^{-1} F_pq`` of ``F = l^2 / 2``; a held
-  parameter does not move).
+  Hessian ``F_qq - F_qp F_pp^{-1} F_pq`` of ``F = l^2 / 2``; a parameter
+  held on a node does not move) and the weight's derivative.
 
 A crossing pair and Gauss-point pairs can act at one crossing together:
 redundant constraints of the same gap, which the augmented Lagrangian
@@ -289,6 +290,12 @@ class CrossingPairs:
     beta: np.ndarray = None     # (m,) effective angle of the minimum (radians)
     length: np.ndarray = None   # (m,) |X(u) - Y(v)| of the acting pair (distance:
                                 # the Uzawa gap's, see crossing_pairs)
+    weight: np.ndarray = None   # (m,) the pair's share of its force (:func:`_weigh`)
+    weight_slope: np.ndarray = None   # (m,) d weight / d rise
+    probe_dofs: np.ndarray = None     # (m, 24) position dofs of the lowest probe
+    probe_dq: np.ndarray = None       # (m, 24) its distance's derivative there
+    probe_dp: np.ndarray = None       # (m, 2) and in the pair's parameters u, v
+    weight_slope_l: np.ndarray = None  # (m,) d weight / d l at a fixed rise
 
     @property
     def size(self):
@@ -482,52 +489,14 @@ def _one_per_crossing(s, s_bar, dist, within, held=None):
     return np.sort(order[np.r_[True, lab[order][1:] != lab[order][:-1]]])
 
 
-def _held_pairs(mesh, r, key, exclusion):
-    """The acting pairs of held minima: slave the material point ``X(s)``
-    of the key (held: ``u`` not free), master its projection on the
-    element of ``s_bar`` or a neighbour (the closest admissible)."""
-    vt, ne = mesh.vertices, mesh.nodes.shape[0]
-    period = arclength_period(mesh)
-    s0, sb0 = key[:, 0], key[:, 1]
-    e = np.clip(np.searchsorted(vt, s0, side="right") - 1, 0, ne - 1)
-    u = np.clip((s0 - vt[e]) / (vt[e + 1] - vt[e]), 0.0, 1.0)
-    N = shape_functions(u)[0].T                                     # (k, 4)
-    x = np.einsum("kI,kIc->kc", N, r[mesh.nodes[e]])
-    f0 = np.clip(np.searchsorted(vt, sb0, side="right") - 1, 0, ne - 1)
-    best = None
-    for step in (0, -1, 1):
-        f = f0 + step
-        f = np.mod(f, ne) if period is not None else np.clip(f, 0, ne - 1)
-        xi, interior = project(x, r[mesh.nodes[f]])
-        y = np.einsum("kI,kIc->kc", shape_functions(xi)[0].T, r[mesh.nodes[f]])
-        d = np.linalg.norm(x - y, axis=1)
-        sb = vt[f] + xi * (vt[f + 1] - vt[f])
-        d = np.where(arc_distance(s0, sb, period) >= exclusion, d, np.inf)
-        cand = (f, xi, interior, sb, d, x - y)
-        if best is None:
-            best = cand
-        else:
-            better = d < best[4]
-            best = tuple(np.where(better[:, None] if a.ndim == 2 else better, a, b)
-                         for a, b in zip(cand, best))
-    f, v, interior, sb, d, D = best
-    return dict(e=e, f=f, u=u, v=v, s=s0, s_bar=sb, distance=d, D=D,
-                u_free=np.zeros(e.size, bool), v_free=interior)
-
-
-#: a held pair sharp at the multiplier update stays sharp (both parameters
-#: free) during the solve while its minimum's effective angle is above this
-#: fraction of the threshold (:func:`_held_parts`)
-KEEP_SHARP = 0.5
-
-
 @dataclass(frozen=True)
 class PairThreshold:
-    """Which strict minima of the strand distance get a fresh pair (both
-    parameters free): those whose effective angle is at least
-    ``min(min_angle, beta_h)``, ``beta_h`` the angle below which the
-    ``n_slave`` Gauss slave points per element hold a minimum to the
-    Uzawa ``tolerance`` (:func:`sampled_angle`).  From the contact options:
+    """The angle at which a crossing pair acts with its full weight:
+    ``min(min_angle, beta_h)``, ``beta_h`` the effective angle below which
+    the ``n_slave`` Gauss slave points per element hold a minimum to
+    ``SAMPLING_SHARE`` of the Uzawa ``tolerance`` (:func:`sampled_angle`).
+    It is measured at the sampling scale, by probes (:func:`_weigh`).
+    From the contact options:
     :meth:`skfem_rod.contact.ContactOptions.crossing_threshold`."""
     min_angle: float = float(np.radians(15.0))
     n_slave: int = 3
@@ -541,38 +510,35 @@ class PairThreshold:
 def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThreshold(),
                    held=None):
     """Point-to-point contact pairs at the strict local minima of the
-    distance between strands (see module doc and docs/crossing-contact.md).
+    distance between strands, each with its weight (see module doc and
+    docs/crossing-contact.md).
 
-    *New minima.*  A strict local minimum of the distance along both whole
-    strands (interior stationary points, or a node where the distance grows
-    into both elements beside it), closer than ``reach`` and at least
-    ``exclusion`` apart in arclength, whose effective angle ``beta``
-    (``sin^2 beta = det F_pp / (F_uu F_vv)``: the angle of straight
-    strands; curvature counts) is at least ``min(min_angle, beta_h)``
-    (``threshold``, a :class:`PairThreshold`: ``beta_h`` the angle below
-    which the Gauss slave points hold a minimum to the tolerance,
-    :func:`sampled_angle`, smaller element length), is a pair with both
-    parameters free.  Flatter minima (near-parallel strands: a line
-    contact) are the Gauss-point pairs' job.
+    *Minima.*  Strict local minima of the distance along both whole strands
+    (interior stationary points, or a node where the distance grows into
+    both elements beside it), closer than ``reach`` and at least
+    ``exclusion`` apart in arclength.
+
+    *Weight.*  A pair acts with the weight :func:`_weigh` gives its minimum:
+    how far the distance rises at probes half a slave gap before and after
+    it on either strand, against the rise of a minimum at the angle of
+    ``threshold`` (a :class:`PairThreshold`): 1 at a crossing, 0 at a line
+    contact (the Gauss-point pairs' job), continuous in between and at the
+    moments a minimum hops, forms or vanishes.  Minima of weight 0 get no
+    pair.
 
     *Held minima.*  ``held = (key, multipliers)``, the pairs of the last
     multiplier update (``Multipliers.crossing_key``, ``.crossing``): each
-    with a positive multiplier, or with a new minimum within its carry
-    radius, acts as a point-to-curve pair from the material point
-    ``X(s)`` of its key (held fixed during the solve) to the other strand
-    (projection free): smooth in the state, whatever the angle, and it does
-    not vanish while it carries a force.  Its reported ``distance`` (the
-    Uzawa gap) is the smaller of its own and that of the minimum it follows;
-    its key moves to that minimum, so the next multiplier update puts the
-    material point there.  ``held = (key, multipliers, track)``: ``track``
-    (optional, ``(k, 2)``) the places ``(s, s_bar)`` from which the held
-    pairs look for their minimum, the places they followed at the last
-    evaluation (:class:`CrossingTrack`; default their keys' places): a
-    minimum that moves by about an element within a solve left the carry
-    radius of its key, and the pair switched between following it and
-    acting at its material point from one Newton iterate to the next
-    (measured in the plectoneme's damped steps: the minimum 0.0092 <->
-    0.0099 from a key with carry radius 0.01, the residual 0.61 <-> 0.76).
+    follows the nearest minimum within its carry radius (the key's 4th
+    entry then holds its index, :func:`carry` gives it its multiplier).
+    ``held = (key, multipliers, track)``: ``track`` (optional, ``(k, 2)``)
+    the places ``(s, s_bar)`` from which the held pairs look for their
+    minimum, the places they followed at the last evaluation
+    (:class:`CrossingTrack`; default their keys' places): a minimum that
+    moves by about an element within a solve left the carry radius of its
+    key, and its multiplier switched on and off from one Newton iterate to
+    the next (measured in the plectoneme's damped steps: the minimum 0.0092
+    <-> 0.0099 from a key with carry radius 0.01, the residual 0.61 <->
+    0.76).
 
     Examples
     --------
@@ -586,6 +552,8 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThresho
     >>> cp = crossing_pairs(mesh, r, 0.1, 0.3)
     >>> cp.size, round(float(cp.distance[0]), 12), round(float(cp.u[0]), 12)
     (1, 0.15, 0.5)
+    >>> float(cp.weight[0])
+    1.0
     """
     reach = 3.0 * radius if reach is None else reach
     old = np.zeros((0, 4)) if held is None else np.asarray(held[0], float)
@@ -595,32 +563,133 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThresho
         near = old.copy()
         near[:, :2] = held[2]
     mn = _minima(mesh, r, radius, exclusion, reach, near if valid else None)
-    fresh = _classify(mesh, mn, radius, threshold)
-    parts = []
+    _describe(mesh, mn)
+    _weigh(mesh, r, mn, radius, threshold, exclusion)
+    # each minimum once: held index of the pair following it, or -1
+    held_index = np.full(mn["e"].size, -1.0)
     if valid:
-        parts += _held_parts(mesh, r, mn, fresh, (old, np.asarray(held[1], float), near),
-                             reach, exclusion)
-    k = np.flatnonzero(fresh)
-    new = {n: a[k] for n, a in mn.items()}
-    new["key"] = np.c_[mn["mkey"][k], np.full(k.size, -1.0)]
-    parts.append(new)
-    return _collect(mesh, r, parts)
+        follow = _follow(mn["mkey"], near)
+        i = np.flatnonzero(follow >= 0)
+        held_index[follow[i]] = i
+    k = np.flatnonzero(mn["weight"] > 0)
+    pairs = {n: a[k] for n, a in mn.items()}
+    pairs["key"] = np.c_[mn["mkey"][k], held_index[k]]
+    return _collect(mesh, r, pairs)
 
 
-def _classify(mesh, mn, radius, threshold):
-    """The minima ``mn`` (of :func:`_minima`) sharp enough for a fresh pair
-    (:class:`PairThreshold`); adds to ``mn`` their effective angle
-    ``beta``, the acting ``length`` and the place key ``mkey`` ``(m, 4)``:
-    ``s, s_bar``, the carry radius (the longer element) and ``beta``."""
+#: a crossing pair fades in as the distance its probes see rises from
+#: FADE[0] to FADE[1] times the rise of a minimum at the threshold angle
+FADE = (0.5, 1.0)
+
+
+def _curve_at(mesh, r, s):
+    """Element, reference coordinate, shape values ``(k, 4)``, point and
+    xi-derivative ``(k, 3)`` at arclengths ``s`` (periodic on a closed rod,
+    clamped to the ends of an open one), and whether the point moves with
+    ``s`` (not clamped)."""
+    vt, ne = mesh.vertices, mesh.nodes.shape[0]
+    period = arclength_period(mesh)
+    if period is None:
+        moving = (s > vt[0]) & (s < vt[-1])
+        s = np.clip(s, vt[0], vt[-1])
+    else:
+        moving = np.ones(s.size, bool)
+        s = vt[0] + np.mod(s - vt[0], period)
+    e = np.clip(np.searchsorted(vt, s, side="right") - 1, 0, ne - 1)
+    xi = np.clip((s - vt[e]) / (vt[e + 1] - vt[e]), 0.0, 1.0)
+    N, dN, _ = shape_functions(xi)
+    re = r[mesh.nodes[e]]
+    return (e, N.T, np.einsum("kI,kIc->kc", N.T, re), np.einsum("kI,kIc->kc", dN.T, re), moving,
+            s)
+
+
+def _near(mesh, r, x, sx, f, exclusion):
+    """The closest point to ``x`` ``(k, 3)`` (at arclength ``sx``) on the
+    elements ``f - 1, f, f + 1``, at least ``exclusion`` away in arclength:
+    distance, ``x - y``, element and shape values."""
+    ne, vt = mesh.nodes.shape[0], mesh.vertices
+    period = arclength_period(mesh)
+    closed = period is not None
+    best = None
+    for o in (0, -1, 1):
+        fb = f + o
+        ok = np.ones(f.size, bool) if closed else (fb >= 0) & (fb < ne)
+        fb = np.mod(fb, ne) if closed else np.where(ok, fb, f)
+        eta, _ = project(x, r[mesh.nodes[fb]])
+        Nb = shape_functions(eta)[0].T
+        D = x - np.einsum("kI,kIc->kc", Nb, r[mesh.nodes[fb]])
+        ok &= arc_distance(sx, vt[fb] + eta * (vt[fb + 1] - vt[fb]), period) >= exclusion
+        d = np.where(ok, np.sqrt(np.sum(D * D, axis=1)), np.inf)
+        if best is None:
+            best = [d, D, fb, Nb]
+        else:
+            lower = d < best[0]
+            best = [np.where(lower, d, best[0]), np.where(lower[:, None], D, best[1]),
+                    np.where(lower, fb, best[2]), np.where(lower[:, None], Nb, best[3])]
+    return best
+
+
+def _weigh(mesh, r, mn, radius, threshold, exclusion):
+    """The weight of the pair each minimum of ``mn`` would carry: probes at
+    ``delta`` (the Gauss slave points' half gap) before and after the
+    minimum on either strand, each at its distance from the other strand
+    (elements next to the minimum's); the lowest rise above the minimum's
+    distance against the rise of a minimum at the threshold angle
+    ``(delta sin beta_min)^2 / (4 eps)``.  Adds ``weight``,
+    ``weight_slope`` and the lowest probe's derivative pieces."""
+    m = mn["e"].size
     vt = mesh.vertices
     e, f = mn["e"], mn["f"]
-    hmin = np.minimum(vt[e + 1] - vt[e], vt[f + 1] - vt[f])
-    beta_min = threshold.angle(hmin, radius)
+    he, hf = vt[e + 1] - vt[e], vt[f + 1] - vt[f]
+    hmin = np.minimum(he, hf)
+    delta = slave_half_gap(threshold.n_slave) * hmin
+    # the rise at the threshold angle, at the minimum's own distance l
+    c2 = (delta * np.sin(threshold.angle(hmin, radius))) ** 2
+    l = mn["distance"]
+    R = np.sqrt(l * l + c2) - l
+    dR = l / np.sqrt(l * l + c2) - 1.0                      # dR / dl
+    rise = np.full(m, np.inf)
+    dofs, dq, dp = np.zeros((m, 24), np.int64), np.zeros((m, 24)), np.zeros((m, 2))
+    for side in (0, 1):
+        s0, A, B, h = (mn["s"], e, f, he) if side == 0 else (mn["s_bar"], f, e, hf)
+        for sign in (-1.0, 1.0):
+            ep, Np, x, x1, moving, sp_ = _curve_at(mesh, r, s0 + sign * delta)
+            d, D, fb, Nb = _near(mesh, r, x, sp_, B, exclusion)
+            nrm = D / np.where(np.isfinite(d), d, 1.0)[:, None]
+            lower = d - mn["distance"] < rise
+            if not lower.any():
+                continue
+            # the probe point X(s* +- delta) rides on the minimum's parameter
+            c = np.where(moving, _dot(nrm.T, x1.T) * h / (vt[ep + 1] - vt[ep]), 0.0)
+            a = np.concatenate([Np, -Nb], axis=1) if side == 0 else np.concatenate([-Nb, Np], 1)
+            nodes = (np.concatenate([mesh.nodes[ep], mesh.nodes[fb]], axis=1) if side == 0
+                     else np.concatenate([mesh.nodes[fb], mesh.nodes[ep]], axis=1))
+            k = np.flatnonzero(lower)
+            rise[k] = d[k] - mn["distance"][k]
+            dq[k] = (a[k, :, None] * nrm[k, None, :]).reshape(k.size, 24)
+            dofs[k] = (6 * nodes[k, :, None] + np.arange(3)).reshape(k.size, 24)
+            dp[k] = 0.0
+            dp[k, side] = c[k]
+    t = (rise / R - FADE[0]) / (FADE[1] - FADE[0])
+    tc = np.clip(t, 0.0, 1.0)
+    mn["weight"] = tc * tc * (3.0 - 2.0 * tc)
+    slope = np.where((t > 0) & (t < 1), 6.0 * tc * (1.0 - tc), 0.0) / (FADE[1] - FADE[0])
+    mn["weight_slope"] = slope / R
+    mn["weight_slope_l"] = -slope * rise * dR / (R * R)
+    mn["probe_dofs"], mn["probe_dq"], mn["probe_dp"] = dofs, dq, dp
+
+
+def _describe(mesh, mn):
+    """Adds to the minima ``mn`` (of :func:`_minima`) their effective
+    angle ``beta``, the acting ``length`` and the place key ``mkey``
+    ``(m, 4)``: ``s, s_bar``, the carry radius (the longer element) and
+    ``beta``."""
+    vt = mesh.vertices
+    e, f = mn["e"], mn["f"]
     beta = np.arcsin(np.sqrt(np.clip(mn["sin2"], 0.0, 1.0)))
     mn["mkey"] = np.c_[mn["s"], mn["s_bar"], np.maximum(vt[e + 1] - vt[e], vt[f + 1] - vt[f]),
                        beta]
-    mn["length"], mn["beta"], mn["beta_min"] = mn["distance"], beta, beta_min
-    return beta >= beta_min
+    mn["length"], mn["beta"] = mn["distance"], beta
 
 
 class CrossingTrack:
@@ -665,81 +734,19 @@ def _follow(mkey, old):
     return follow
 
 
-def _held_parts(mesh, r, mn, fresh, held, reach, exclusion):
-    """The pairs of the held minima ``held = (key, multipliers)``: those
-    following a sharp minimum act at it (both parameters free), loaded
-    ones on a flat minimum or none at a held material point
-    (:func:`_flat_held`).  A followed minimum is no longer ``fresh``.
-
-    Sharp or flat is decided at the multiplier update, by the minimum's
-    angle then (the key's ``beta``), and kept during the solve while the
-    minimum stays above :data:`KEEP_SHARP` of the threshold: a minimum
-    whose angle hovers at the threshold switched the pair between the two
-    forms from one Newton iterate to the next (measured in the
-    plectoneme's damped steps: beta 0.2603 <-> 0.2696 around 0.2618, the
-    residual 0.15 <-> 0.73 for ever).  An unloaded held pair is sharp
-    where a new pair would be.  ``held = (key, multipliers, near)``:
-    ``near`` the keys with the places each pair follows from
-    (:func:`crossing_pairs`)."""
-    old, lam, near = held
-    follow = _follow(mn["mkey"], near)
-    has = follow >= 0
-    sharp = np.zeros(old.shape[0], bool)
-    fh = follow[has]
-    kept = (old[has, 3] >= mn["beta_min"][fh]) & (mn["beta"][fh] >= KEEP_SHARP * mn["beta_min"][fh])
-    sharp[has] = np.where(lam[has] > 0, kept, fresh[fh])       # unloaded: as a new pair
-    act = (lam > 0) | sharp
-    # sharp minima act at the minimum (both parameters free)
-    i = np.flatnonzero(sharp)
-    fp = {n: a[follow[i]] for n, a in mn.items()}
-    fp["key"] = np.c_[mn["mkey"][follow[i]], i]
-    # a pair whose minimum is gone acts at the place it was last seen (the
-    # tracked place): where it vanished, so the force does not jump there
-    at = old.copy()
-    at[~has, :2] = near[~has, :2]
-    hp = _flat_held(mesh, r, mn, at, np.flatnonzero(act & ~sharp), follow, reach, exclusion)
-    fresh[follow[has]] = False
-    return [fp, hp]
-
-
-def _flat_held(mesh, r, mn, old, i, follow, reach, exclusion):
-    """The held pairs ``i`` of keys ``old`` that act held, at the
-    material point of their key (fixed during the solve;
-    :func:`_held_pairs`): on a flat minimum, which they follow (their key
-    moves to it; the key's place is the minimum's at the last multiplier
-    update), or, loaded, where the minimum is gone (the key's place is
-    where it was last seen), until the multiplier is 0.  (They acted at
-    the grid point nearest the current minimum before: a flat minimum
-    moves by ``delta / sin^2 beta``, and the grid point jumped between
-    Newton iterates: measured 1.3e-3 of the rod's length, two grid points,
-    in the plectoneme's damped steps, which then 2-cycled.)"""
-    fl = follow[i]
-    hp = _held_pairs(mesh, r, old[i, :2], exclusion)
-    ok = np.isfinite(hp["distance"]) & (hp["distance"] < reach) & (hp["distance"] > 0)
-    i, fl, hp = i[ok], fl[ok], {n: a[ok] for n, a in hp.items()}
-    hp["length"] = hp["distance"]
-    hp["distance"] = np.where(fl >= 0, np.minimum(hp["distance"], mn["distance"][fl]),
-                              hp["distance"])
-    hp["beta"] = np.where(fl >= 0, mn["beta"][np.maximum(fl, 0)], 0.0)
-    hp["key"] = np.c_[np.where(fl[:, None] >= 0, mn["mkey"][np.maximum(fl, 0)],
-                               np.c_[old[i, :3], np.zeros(i.size)]), i]
-    return hp
-
-
-def _collect(mesh, r, parts):
-    """The :class:`CrossingPairs` of the ``parts`` (dicts of per-pair
-    arrays), in order, with the tangents' ``|cos|`` at the pairs."""
-    cat = lambda n: np.concatenate([p[n] for p in parts])                   # noqa: E731
-    e, f, u, v = cat("e"), cat("f"), cat("u"), cat("v")
-    length = cat("length")
-    D = np.concatenate([p["D"].reshape(-1, 3) for p in parts])
+def _collect(mesh, r, p):
+    """The :class:`CrossingPairs` of the per-pair arrays ``p``, with the
+    tangents' ``|cos|`` at the pairs."""
+    e, f, u, v = p["e"], p["f"], p["u"], p["v"]
     C = monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
     X1 = curve_point(C[:, :, e], u)[1]
     Y1 = curve_point(C[:, :, f], v)[1]
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(_dot(X1, X1) * _dot(Y1, Y1))
-    return CrossingPairs(e, f, u, v, cat("s"), cat("s_bar"), cat("distance"),
-                         D / length[:, None], cos, np.concatenate([p["key"] for p in parts]),
-                         cat("u_free"), cat("v_free"), cat("beta"), length)
+    return CrossingPairs(e, f, u, v, p["s"], p["s_bar"], p["distance"],
+                         p["D"].reshape(-1, 3) / p["length"][:, None], cos, p["key"],
+                         p["u_free"], p["v_free"], p["beta"], p["length"], p["weight"],
+                         p["weight_slope"], p["probe_dofs"], p["probe_dq"], p["probe_dp"],
+                         p["weight_slope_l"])
 
 
 def carry(old_key, old_lam, new_key):
@@ -774,12 +781,21 @@ def carry(old_key, old_lam, new_key):
     return lam
 
 
-def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
+def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
     """Energy, force vector ``(n_dofs,)``, tangent (CSC or None) and the
     per-pair forces ``f_N`` of the crossing pairs (``pairs`` from
     :func:`crossing_pairs` at ``r``; ``lam`` ``(m,)`` their multipliers,
     ``mu`` the compliance of the point law).  scikit-fem dof numbering as
-    :func:`.assembly.contact_work` (6 dofs per node, positions first)."""
+    :func:`.assembly.contact_work` (6 dofs per node, positions first).
+
+    Each pair acts with its weight ``w`` (:func:`_weigh`): force
+    ``w f_N dl/dq``, energy ``w phi``.  The tangent has the weight's
+    derivative (through the lowest probe, its own dofs and the minimum's
+    motion), so the force is no energy's gradient where ``0 < w < 1``:
+    there the tangent is not symmetric.  ``fade=False`` leaves that
+    derivative out (the frozen-weight tangent the stability checks read,
+    :meth:`skfem_rod.problem.Problem.free_tangent`).  The per-pair forces
+    returned are ``w f_N``."""
     n = mesh.n_dofs
     m = pairs.size
     if m == 0:
@@ -787,7 +803,8 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     l = pairs.distance if pairs.length is None else pairs.length
     d = gap(l, radius)
     fN, dfN = normal_force(d, lam, mu)
-    energy = float(np.sum(potential(d, lam, mu)))
+    energy = float(np.sum((1.0 if pairs.weight is None else pairs.weight)
+                          * potential(d, lam, mu)))
     Nu, dNu, d2Nu = (a.T for a in shape_functions(pairs.u))       # (m, 4)
     Nv, dNv, d2Nv = (a.T for a in shape_functions(pairs.v))
     re, rf = r[mesh.nodes[pairs.e]], r[mesh.nodes[pairs.f]]       # (m, 4, 3)
@@ -803,9 +820,10 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
     lq = Fq / l[:, None]
     nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
     dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(m, 24)
-    force = np.bincount(dofs.ravel(), weights=(-fN[:, None] * lq).ravel(), minlength=n)
+    w = np.ones(m) if pairs.weight is None else pairs.weight
+    force = np.bincount(dofs.ravel(), weights=(-(w * fN)[:, None] * lq).ravel(), minlength=n)
     if not tangent:
-        return energy, force, None, fN
+        return energy, force, None, w * fN
     Fpq = np.stack([kron(aX1, D) + kron(aD, X1), -(kron(aY1, D) + kron(aD, Y1))], axis=1)
     Fpp = np.empty((m, 2, 2))
     Fpp[:, 0, 0], Fpp[:, 1, 1], Fpp[:, 0, 1] = _hessian(D.T, X1.T, X2.T, Y1.T, Y2.T)
@@ -821,10 +839,26 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True):
             Fpp[held, k, k] = 1.0
     Fqq = (aD[:, :, None, None, None] * aD[:, None, None, :, None]
            * np.eye(3)[None, None, :, None, :]).reshape(m, 24, 24)
-    H = Fqq - np.swapaxes(Fpq, 1, 2) @ np.linalg.solve(Fpp, Fpq)   # reduced Hessian of F
+    S = np.linalg.solve(Fpp, Fpq)                                 # -dp/dq
+    H = Fqq - np.swapaxes(Fpq, 1, 2) @ S                          # reduced Hessian of F
     lqq = H / l[:, None, None] - lq[:, :, None] * lq[:, None, :] / l[:, None, None]
-    Ke = dfN[:, None, None] * lq[:, :, None] * lq[:, None, :] - fN[:, None, None] * lqq
-    rows = np.broadcast_to(dofs[:, :, None], Ke.shape).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], Ke.shape).ravel()
-    K = sp.csc_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
-    return energy, force, K, fN
+    Ke = w[:, None, None] * (dfN[:, None, None] * lq[:, :, None] * lq[:, None, :]
+                             - fN[:, None, None] * lqq)
+    rows, cols = [dofs], [dofs]
+    blocks = [Ke]
+    if fade and pairs.weight_slope is not None:
+        # the weight's derivative: w(rise, l), rise = (lowest probe's
+        # distance) - l, the probe riding on the pair's parameters
+        # (dp/dq = -S) and on its own dofs (probe_dq)
+        ws, wl = pairs.weight_slope[:, None], pairs.weight_slope_l[:, None]
+        dw = ws * (-np.einsum("mk,mkq->mq", pairs.probe_dp, S) - lq) + wl * lq
+        blocks += [-fN[:, None, None] * lq[:, :, None] * dw[:, None, :],
+                   -fN[:, None, None] * lq[:, :, None] * (ws * pairs.probe_dq)[:, None, :]]
+        rows += [dofs, dofs]
+        cols += [dofs, pairs.probe_dofs]
+    ij = [(np.broadcast_to(a[:, :, None], b.shape).ravel(),
+           np.broadcast_to(c[:, None, :], b.shape).ravel()) for a, c, b in zip(rows, cols, blocks)]
+    K = sp.csc_matrix((np.concatenate([b.ravel() for b in blocks]),
+                       (np.concatenate([i for i, _ in ij]), np.concatenate([j for _, j in ij]))),
+                      shape=(n, n))
+    return energy, force, K, w * fN
