@@ -679,3 +679,33 @@ def test_closest_points_run_down_a_saddle_valley(u0, v0):
     scale = np.sqrt(D @ D * (X1 @ X1 + Y1 @ Y1))
     assert v[0] == 0.0 and 0.0 < u[0] < 1.0
     assert -(D @ Y1) > 0 and abs(D @ X1) <= 1e-12 * scale
+
+
+def test_a_minimum_flat_at_its_place_gets_no_pair_however_steep_its_probes():
+    """Strand B runs parallel to strand A and leaves it as ``|x|^3`` on
+    either side of a node: the distance rises steeply at the probes (above
+    the threshold's rise) but the minimum (on B's node) is flat, local
+    effective angle 0: its place is ill-conditioned (it moves by
+    ``delta / sin^2 beta``), so the local factor of the weight is 0 and
+    there is no pair.  The same B leaving A as ``|x|`` (a V, a sharp node
+    minimum) gets one of full weight."""
+    mesh = RodMesh(5 * H, 5)
+    u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+
+    def build(power, c):
+        r = np.zeros((mesh.n_nodes, 3))
+        r[mesh.nodes[0]] = np.outer((u - 1) * H, [1, 0, 0])
+        r[mesh.nodes[1]] = np.outer(u * H, [1, 0, 0])
+        x3 = (1 - u) * H                                      # element 3: x from H to 0
+        x4 = -u * H                                           # element 4: x from 0 to -H
+        for e, x in ((3, x3), (4, x4)):
+            r[mesh.nodes[e]] = np.c_[x, np.zeros(4), 1.9 * EPS + c * np.abs(x / H) ** power * H]
+        r[mesh.nodes[2, 2:]] = [[H, 0, 5 * H], [H, 0, 5 * H + 1]]
+        return r
+
+    flat = crossing_pairs(mesh, build(3, 0.05), EPS, np.pi * EPS)
+    assert flat.size == 0
+    md = min_distance(mesh, build(3, 0.05), EPS, np.pi * EPS)
+    assert md.distance == pytest.approx(1.9 * EPS)                 # in contact, on the node
+    sharp = crossing_pairs(mesh, build(1, 0.05), EPS, np.pi * EPS)
+    assert sharp.size == 1 and sharp.weight[0] == 1.0

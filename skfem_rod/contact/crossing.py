@@ -32,9 +32,10 @@ bound).  The design (thresholds, weights, why) is docs/crossing-contact.md.
   centreline), both parameters free, with a weight (:func:`_weigh`): how
   far the distance rises at probes half a Gauss-point gap before and after
   the minimum on either strand, against a minimum at the angle the Gauss
-  slave points sample to the tolerance (:func:`sampled_angle`).  1 at a
-  crossing, 0 at a line contact (the Gauss pairs' job), continuous where a
-  minimum hops along a flat valley, crosses a node, forms or vanishes.
+  slave points sample to the tolerance (:func:`sampled_angle`), times a
+  factor of the local effective angle.  1 at a crossing, 0 at a line
+  contact (the Gauss pairs' job), continuous where a minimum hops along a
+  flat valley, splits, crosses a node, forms or vanishes.
   Multipliers are carried by place, ``(s, s_bar)`` (:func:`carry`), not
   by element pair.
 * :func:`crossing_work`: a point force at the pair, gap
@@ -296,6 +297,7 @@ class CrossingPairs:
     probe_dq: np.ndarray = None       # (m, 24) its distance's derivative there
     probe_dp: np.ndarray = None       # (m, 2) and in the pair's parameters u, v
     weight_slope_l: np.ndarray = None  # (m,) d weight / d l at a fixed rise
+    weight_slope_beta: np.ndarray = None  # (m,) d weight / d sin^2 beta
 
     @property
     def size(self):
@@ -521,10 +523,10 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThresho
     *Weight.*  A pair acts with the weight :func:`_weigh` gives its minimum:
     how far the distance rises at probes half a slave gap before and after
     it on either strand, against the rise of a minimum at the angle of
-    ``threshold`` (a :class:`PairThreshold`): 1 at a crossing, 0 at a line
-    contact (the Gauss-point pairs' job), continuous in between and at the
-    moments a minimum hops, forms or vanishes.  Minima of weight 0 get no
-    pair.
+    ``threshold`` (a :class:`PairThreshold`), times a factor of its local
+    effective angle: 1 at a crossing, 0 at a line contact (the Gauss-point
+    pairs' job), continuous in between and at the moments a minimum hops,
+    splits, forms or vanishes.  Minima of weight 0 get no pair.
 
     *Held minima.*  ``held = (key, multipliers)``, the pairs of the last
     multiplier update (``Multipliers.crossing_key``, ``.crossing``): each
@@ -630,13 +632,16 @@ def _near(mesh, r, x, sx, f, exclusion):
 
 
 def _weigh(mesh, r, mn, radius, threshold, exclusion):
-    """The weight of the pair each minimum of ``mn`` would carry: probes at
+    """The weight of the pair each minimum of ``mn`` would carry, the
+    product of two smoothsteps (:func:`_smoothstep`): of the rise at probes
     ``delta`` (the Gauss slave points' half gap) before and after the
     minimum on either strand, each at its distance from the other strand
-    (elements next to the minimum's); the lowest rise above the minimum's
-    distance against the rise of a minimum at the threshold angle
-    ``(delta sin beta_min)^2 / (4 eps)``.  Adds ``weight``,
-    ``weight_slope`` and the lowest probe's derivative pieces."""
+    (elements next to the minimum's), the lowest rise above the minimum's
+    distance against the rise of straight strands at the threshold angle
+    ``beta_min``; and of the local ``sin^2 beta`` against ``sin^2
+    beta_min`` (where it is small the minimum's place is ill-conditioned).
+    Adds ``weight``, its slopes and the lowest probe's derivative pieces
+    (docs/crossing-contact.md, section 4)."""
     m = mn["e"].size
     vt = mesh.vertices
     e, f = mn["e"], mn["f"]
@@ -670,13 +675,25 @@ def _weigh(mesh, r, mn, radius, threshold, exclusion):
             dofs[k] = (6 * nodes[k, :, None] + np.arange(3)).reshape(k.size, 24)
             dp[k] = 0.0
             dp[k, side] = c[k]
-    t = (rise / R - FADE[0]) / (FADE[1] - FADE[0])
-    tc = np.clip(t, 0.0, 1.0)
-    mn["weight"] = tc * tc * (3.0 - 2.0 * tc)
-    slope = np.where((t > 0) & (t < 1), 6.0 * tc * (1.0 - tc), 0.0) / (FADE[1] - FADE[0])
-    mn["weight_slope"] = slope / R
-    mn["weight_slope_l"] = -slope * rise * dR / (R * R)
+    w_rise, slope = _smoothstep(rise / R)
+    # ... and the local sharpness: where sin^2 beta is small the minimum's
+    # place moves by delta / sin^2 beta for a change delta of the state
+    sb2 = np.sin(threshold.angle(hmin, radius)) ** 2
+    w_beta, slope_beta = _smoothstep(mn["sin2"] / sb2)
+    mn["weight"] = w_rise * w_beta
+    mn["weight_slope"] = w_beta * slope / R
+    mn["weight_slope_l"] = -w_beta * slope * rise * dR / (R * R)
+    mn["weight_slope_beta"] = w_rise * slope_beta / sb2
     mn["probe_dofs"], mn["probe_dq"], mn["probe_dp"] = dofs, dq, dp
+
+
+def _smoothstep(x):
+    """``S(t) = 3 t^2 - 2 t^3`` of ``t = (x - FADE[0]) / (FADE[1] - FADE[0])``
+    clipped to [0, 1], and ``dS/dx``."""
+    t = (x - FADE[0]) / (FADE[1] - FADE[0])
+    tc = np.clip(t, 0.0, 1.0)
+    slope = np.where((t > 0) & (t < 1), 6.0 * tc * (1.0 - tc), 0.0) / (FADE[1] - FADE[0])
+    return tc * tc * (3.0 - 2.0 * tc), slope
 
 
 def _describe(mesh, mn):
@@ -746,7 +763,44 @@ def _collect(mesh, r, p):
                          p["D"].reshape(-1, 3) / p["length"][:, None], cos, p["key"],
                          p["u_free"], p["v_free"], p["beta"], p["length"], p["weight"],
                          p["weight_slope"], p["probe_dofs"], p["probe_dq"], p["probe_dp"],
-                         p["weight_slope_l"])
+                         p["weight_slope_l"], p["weight_slope_beta"])
+
+
+#: third derivatives of the cubic Lagrange shape functions (nodes 0, 1, 1/3, 2/3)
+_D3N = np.array([-27.0, 27.0, 81.0, -81.0])
+
+
+def _dsin2(pairs, re, rf, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
+    """``d(sin^2 beta)/dq`` ``(m, 24)`` of the pairs' minima, ``sin^2 beta
+    = det F_pp / (F_uu F_vv)`` (smooth Hessian of the element pair's
+    curves, the node-held parameter included), through the positions at
+    fixed parameters and the minimum's motion ``dp/dq = -S``."""
+    m = D.shape[0]
+    z = np.zeros((m, 4))
+    N2u, N2v = shape_functions(pairs.u)[2].T, shape_functions(pairs.v)[2].T
+    X3, Y3 = np.einsum("k,mkc->mc", _D3N, re), np.einsum("k,mkc->mc", _D3N, rf)
+    dot = lambda a, b: np.sum(a * b, axis=1)                          # noqa: E731
+    Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2.T, Y1.T, Y2.T)
+    aX2 = np.concatenate([N2u, z], axis=1)
+    aY2 = np.concatenate([z, N2v], axis=1)
+    # at fixed parameters
+    dFuu = 2 * kron(aX1, X1) + kron(aD, X2) + kron(aX2, D)
+    dFvv = 2 * kron(aY1, Y1) - kron(aD, Y2) - kron(aY2, D)
+    dFuv = -(kron(aX1, Y1) + kron(aY1, X1))
+    # along the parameters (a held parameter does not move: S's row is 0)
+    pu = [3 * dot(X1, X2) + dot(D, X3), -dot(Y1, X2)]                  # dFuu/du, /dv
+    pv = [-dot(X1, Y2), 3 * dot(Y1, Y2) - dot(D, Y3)]                  # dFvv/du, /dv
+    pw = [-dot(X2, Y1), -dot(X1, Y2)]                                  # dFuv/du, /dv
+    for k in (0, 1):
+        dpk = -S[:, k]                                                 # (m, 24)
+        dFuu = dFuu + pu[k][:, None] * dpk
+        dFvv = dFvv + pv[k][:, None] * dpk
+        dFuv = dFuv + pw[k][:, None] * dpk
+    det, den = Fuu * Fvv - Fuv * Fuv, Fuu * Fvv
+    ddet = dFuu * Fvv[:, None] + Fuu[:, None] * dFvv - 2 * Fuv[:, None] * dFuv
+    dden = dFuu * Fvv[:, None] + Fuu[:, None] * dFvv
+    inside = (det > 0) & (det < den)                        # not clipped to [0, 1]
+    return np.where(inside[:, None], ddet / den[:, None] - (det / den ** 2)[:, None] * dden, 0.0)
 
 
 def carry(old_key, old_lam, new_key):
@@ -852,6 +906,8 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
         # (dp/dq = -S) and on its own dofs (probe_dq)
         ws, wl = pairs.weight_slope[:, None], pairs.weight_slope_l[:, None]
         dw = ws * (-np.einsum("mk,mkq->mq", pairs.probe_dp, S) - lq) + wl * lq
+        dw = dw + pairs.weight_slope_beta[:, None] * _dsin2(
+            pairs, re, rf, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S)
         blocks += [-fN[:, None, None] * lq[:, :, None] * dw[:, None, :],
                    -fN[:, None, None] * lq[:, :, None] * (ws * pairs.probe_dq)[:, None, :]]
         rows += [dofs, dofs]
