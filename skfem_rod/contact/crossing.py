@@ -656,7 +656,7 @@ def _weigh(mesh, r, mn, radius, threshold, exclusion):
     rise = np.full(m, np.inf)
     dofs, dq, dp = np.zeros((m, 24), np.int64), np.zeros((m, 24)), np.zeros((m, 2))
     for side in (0, 1):
-        s0, A, B, h = (mn["s"], e, f, he) if side == 0 else (mn["s_bar"], f, e, hf)
+        s0, B, h = (mn["s"], f, he) if side == 0 else (mn["s_bar"], e, hf)
         for sign in (-1.0, 1.0):
             ep, Np, x, x1, moving, sp_ = _curve_at(mesh, r, s0 + sign * delta)
             d, D, fb, Nb = _near(mesh, r, x, sp_, B, exclusion)
@@ -682,7 +682,9 @@ def _weigh(mesh, r, mn, radius, threshold, exclusion):
     w_beta, slope_beta = _smoothstep(mn["sin2"] / sb2)
     mn["weight"] = w_rise * w_beta
     mn["weight_slope"] = w_beta * slope / R
-    mn["weight_slope_l"] = -w_beta * slope * rise * dR / (R * R)
+    # (no admissible probe at all: rise = inf, weight 1, no slope)
+    finite = np.where(np.isfinite(rise), rise, 0.0)
+    mn["weight_slope_l"] = -w_beta * slope * finite * dR / (R * R)
     mn["weight_slope_beta"] = w_rise * slope_beta / sb2
     mn["probe_dofs"], mn["probe_dq"], mn["probe_dp"] = dofs, dq, dp
 
@@ -779,7 +781,7 @@ def _dsin2(pairs, re, rf, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
     z = np.zeros((m, 4))
     N2u, N2v = shape_functions(pairs.u)[2].T, shape_functions(pairs.v)[2].T
     X3, Y3 = np.einsum("k,mkc->mc", _D3N, re), np.einsum("k,mkc->mc", _D3N, rf)
-    dot = lambda a, b: np.sum(a * b, axis=1)                          # noqa: E731
+    dot = lambda a, b: _dot(a.T, b.T)                                 # noqa: E731
     Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2.T, Y1.T, Y2.T)
     aX2 = np.concatenate([N2u, z], axis=1)
     aY2 = np.concatenate([z, N2v], axis=1)
