@@ -653,33 +653,36 @@ def _weigh(mesh, r, mn, radius, threshold, exclusion):
     l = mn["distance"]
     R = np.sqrt(l * l + c2) - l
     dR = l / np.sqrt(l * l + c2) - 1.0                      # dR / dl
+    # the local sharpness first: where sin^2 beta is small the minimum's
+    # place moves by delta / sin^2 beta for a change delta of the state;
+    # a minimum with no local factor needs no probes (line contacts: most)
+    sb2 = np.sin(threshold.angle(hmin, radius)) ** 2
+    w_beta, slope_beta = _smoothstep(mn["sin2"] / sb2)
+    todo = np.flatnonzero(w_beta > 0)
     rise = np.full(m, np.inf)
     dofs, dq, dp = np.zeros((m, 24), np.int64), np.zeros((m, 24)), np.zeros((m, 2))
     for side in (0, 1):
         s0, B, h = (mn["s"], f, he) if side == 0 else (mn["s_bar"], e, hf)
         for sign in (-1.0, 1.0):
-            ep, Np, x, x1, moving, sp_ = _curve_at(mesh, r, s0 + sign * delta)
-            d, D, fb, Nb = _near(mesh, r, x, sp_, B, exclusion)
+            ep, Np, x, x1, moving, sp_ = _curve_at(mesh, r, s0[todo] + sign * delta[todo])
+            d, D, fb, Nb = _near(mesh, r, x, sp_, B[todo], exclusion)
             nrm = D / np.where(np.isfinite(d), d, 1.0)[:, None]
-            lower = d - mn["distance"] < rise
+            lower = d - l[todo] < rise[todo]
             if not lower.any():
                 continue
             # the probe point X(s* +- delta) rides on the minimum's parameter
-            c = np.where(moving, _dot(nrm.T, x1.T) * h / (vt[ep + 1] - vt[ep]), 0.0)
+            c = np.where(moving, _dot(nrm.T, x1.T) * h[todo] / (vt[ep + 1] - vt[ep]), 0.0)
             a = np.concatenate([Np, -Nb], axis=1) if side == 0 else np.concatenate([-Nb, Np], 1)
             nodes = (np.concatenate([mesh.nodes[ep], mesh.nodes[fb]], axis=1) if side == 0
                      else np.concatenate([mesh.nodes[fb], mesh.nodes[ep]], axis=1))
-            k = np.flatnonzero(lower)
-            rise[k] = d[k] - mn["distance"][k]
-            dq[k] = (a[k, :, None] * nrm[k, None, :]).reshape(k.size, 24)
-            dofs[k] = (6 * nodes[k, :, None] + np.arange(3)).reshape(k.size, 24)
+            j = np.flatnonzero(lower)
+            k = todo[j]
+            rise[k] = d[j] - l[k]
+            dq[k] = (a[j, :, None] * nrm[j, None, :]).reshape(j.size, 24)
+            dofs[k] = (6 * nodes[j, :, None] + np.arange(3)).reshape(j.size, 24)
             dp[k] = 0.0
-            dp[k, side] = c[k]
+            dp[k, side] = c[j]
     w_rise, slope = _smoothstep(rise / R)
-    # ... and the local sharpness: where sin^2 beta is small the minimum's
-    # place moves by delta / sin^2 beta for a change delta of the state
-    sb2 = np.sin(threshold.angle(hmin, radius)) ** 2
-    w_beta, slope_beta = _smoothstep(mn["sin2"] / sb2)
     mn["weight"] = w_rise * w_beta
     mn["weight_slope"] = w_beta * slope / R
     # (no admissible probe at all: rise = inf, weight 1, no slope)
