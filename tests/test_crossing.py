@@ -4,6 +4,8 @@ that the Gauss-point pairs miss, the point-to-point contact work against
 finite differences (energy -> force -> tangent), and two strands crossing
 at 90 and 30 degrees pressed together, elements 10 contact radii long,
 driven to a true penetration below 1e-3 radius by Newton + Uzawa."""
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -413,6 +415,13 @@ def test_fading_pair_force_tangent(degrees, seed):
     assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
     K = crossing_work(mesh, r, cp, np.zeros(1), 1.0, EPS)[2]
     assert abs(K - K.T).max() > 1e-6 * abs(K).max()
+    # the frozen-weight tangent the stability checks read (fade=False): the
+    # weight times the tangent of the same pair at full weight, symmetric
+    Kf = crossing_work(mesh, r, cp, np.zeros(1), 1.0, EPS, fade=False)[2]
+    full = dataclasses.replace(cp, weight=np.ones(1), weight_slope=None)
+    K1 = crossing_work(mesh, r, full, np.zeros(1), 1.0, EPS)[2]
+    assert abs(Kf - cp.weight[0] * K1).max() <= 1e-12 * abs(K1).max()
+    assert abs(Kf - Kf.T).max() <= 1e-12 * abs(Kf).max()
 
 
 def test_the_weight_rises_continuously_with_the_angle():
