@@ -718,3 +718,90 @@ def test_a_minimum_flat_at_its_place_gets_no_pair_however_steep_its_probes():
     assert md.distance == pytest.approx(1.9 * EPS)                 # in contact, on the node
     sharp = crossing_pairs(mesh, build(1, 0.05), EPS, np.pi * EPS)
     assert sharp.size == 1 and sharp.weight[0] == 1.0
+
+
+def _arcs(s, k):
+    """A curve along x from the origin bending towards +z, curvature
+    ``k[0]`` for ``s < 0`` and ``k[1]`` for ``s > 0`` (C1 at 0, its
+    curvature jumps there)."""
+    kk = np.where(s < 0, k[0], k[1])
+    return np.c_[np.sin(kk * s) / kk, 0 * s, (1 - np.cos(kk * s)) / kk]
+
+
+def _curvature_jumps(x0, alpha=np.radians(40.0), z0=1.9 * EPS):
+    """Strand A (elements 0, 1) and strand B (elements 3, 4), each two arcs
+    whose curvature jumps at their middle node (A: 0.02 -> 0.1, B: 0.02 ->
+    0.06 per eps), bent towards each other and crossing at ``alpha`` just
+    above the two nodes, B shifted by ``x0`` along A.  The curvature term
+    ``D . X''`` of the distance's Hessian is 0.19 of ``|X'|^2`` on one side
+    of A's node and 0.04 on the other."""
+    mesh = RodMesh(5 * H, 5)
+    u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+    r = np.zeros((mesh.n_nodes, 3))
+    c, s = np.cos(alpha), np.sin(alpha)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    for e, lo in ((0, -H), (1, 0.0)):
+        r[mesh.nodes[e]] = _arcs(lo + u * H, (0.02, 0.1))
+    for e, lo in ((3, -H), (4, 0.0)):
+        r[mesh.nodes[e]] = (_arcs(lo + u * H, (0.02, 0.06)) * [1, 1, -1]) @ rot.T + [x0, 0, z0]
+    a, b = r[mesh.nodes[1][1]], r[mesh.nodes[3][0]]
+    r[mesh.nodes[2]] = [a, b, a + [0, -3 * H, -3 * H], b + [0, -3 * H, 3 * H]]
+    return mesh, r
+
+
+def test_the_weight_is_continuous_where_the_curvature_jumps_at_a_node():
+    """The crossing of two strands whose curvature jumps at a node slides
+    across both nodes (the minimum changes both its elements).  Read from
+    each element's own curve, the minimum's effective angle jumps there
+    (37.2 against 28.7 degrees at A's node, the local factor of the
+    weight 1 against 0.82; measured in the plectoneme at 200 elements, 26
+    against 5.7 degrees, and Newton went back and forth); with the second
+    derivatives blended across the node it does not, nor do the weight
+    and the force."""
+    thr = PairThreshold(min_angle=np.pi / 3, n_slave=3, tolerance=1.0)
+    mesh, r = _curvature_jumps(0.0)
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=thr)
+    assert cp.size == 1 and cp.distance[0] == pytest.approx(1.9 * EPS)
+    C = monomial_coefficients(r[mesh.nodes]).transpose(1, 2, 0)
+    Y, Y1, Y2 = (a[:, 0] for a in curve_point(C[:, :, [3]], np.array([1.0])))
+    own = []
+    for e, u0 in ((0, 1.0), (1, 0.0)):                 # A's node, read from either side
+        X, X1, X2 = (a[:, 0] for a in curve_point(C[:, :, [e]], np.array([u0])))
+        D = X - Y
+        huu, hvv, huv = X1 @ X1 + D @ X2, Y1 @ Y1 - D @ Y2, -X1 @ Y1
+        own.append(np.degrees(np.arcsin(np.sqrt(1 - huv ** 2 / (huu * hvv)))))
+    assert abs(own[0] - own[1]) > 5.0, own
+    assert min(own) < np.degrees(cp.beta[0]) < max(own)
+
+    xs = np.linspace(-0.05, 0.05, 101) * H
+    F, W, B, E = [], [], [], set()
+    for x0 in xs:
+        mesh, r = _curvature_jumps(x0)
+        cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=thr)
+        assert cp.size == 1
+        F.append(crossing_work(mesh, r, cp, np.zeros(1), 1.0, EPS, tangent=False)[1])
+        W.append(cp.weight[0])
+        B.append(np.degrees(cp.beta[0]))
+        E.add((int(cp.e[0]), int(cp.f[0])))
+    F, W = np.array(F), np.array(W)
+    assert {(0, 3), (1, 4)} <= E                       # it crossed both nodes
+    assert 0.0 < W.min() and W.max() < 1.0             # in the fade zone throughout
+    assert np.abs(np.diff(B)).max() < 0.2              # degrees, per 1e-3 H
+    assert np.abs(np.diff(W)).max() < 0.05
+    assert np.abs(np.diff(F, axis=0)).max() < 0.05 * np.abs(F).max()
+
+
+@pytest.mark.parametrize("x0, seed", [(-0.012 * H, 0), (0.003 * H, 1), (0.02 * H, 2)])
+def test_blended_local_factor_force_tangent(x0, seed):
+    """Near nodes where the curvature jumps the local factor of the weight
+    reads the second derivatives of the elements beside the pair's: the
+    tangent carries their derivative (dofs of elements 0-4 for a pair of
+    elements 0-1 and 3-4), checked against central differences of the
+    force."""
+    thr = PairThreshold(min_angle=np.pi / 3, n_slave=3, tolerance=1.0)
+    mesh, r = _curvature_jumps(x0)
+    r = r + 1e-4 * EPS * np.random.default_rng(seed).normal(size=r.shape)
+    cp, fN = _fd_check(mesh, r, (np.zeros((0, 5)), np.zeros(0)), seed=seed, mu=1.0,
+                       threshold=thr)
+    assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
+    assert min(cp.u[0], 1 - cp.u[0]) < 0.25 and min(cp.v[0], 1 - cp.v[0]) < 0.25

@@ -454,13 +454,70 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     # the other's between states 1e-7 apart (measured in the knot: u = 1,
     # v = 0.1175 <-> u = 0.8825, v = 0), and a pair following it 2-cycled.
     # (For a strict interior minimum this is ``strict`` itself.)
-    sin2 = np.clip(det / np.maximum(np.abs(huu * hvv), 1e-300), 0.0, 1.0)
+    # The curves' second derivatives jump at the nodes (the C1 contact curve
+    # too), and with them the curvature terms D.X'' of the Hessian: measured
+    # in the plectoneme at 200 elements (curvature 11, D = 2 eps), one node
+    # minimum had 26 deg by one element's curve and 5.7 deg by the other's,
+    # and its weight jumped between 1 and 0 from one Newton iterate to the
+    # next.  The angle that weighs a minimum therefore reads the second
+    # derivatives made continuous across the nodes (:func:`_second`).
     k = np.flatnonzero(ok)
     k = k[_one_per_crossing(s[k], s_bar[k], dist[k],
                             TWIN * float(np.mean(np.diff(mesh.vertices))), held)]
+    X2c, Y2c = _second(mesh, r, e[k], u[k])[0].T, _second(mesh, r, f[k], v[k])[0].T
+    huu, hvv, huv = _hessian(D[:, k], X1[:, k], X2c, Y1[:, k], Y2c)
+    sin2 = np.clip((huu * hvv - huv * huv) / np.maximum(np.abs(huu * hvv), 1e-300), 0.0, 1.0)
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(n1 * n2)
     return dict(e=e[k], f=f[k], u=u[k], v=v[k], s=s[k], s_bar=s_bar[k], distance=dist[k],
-                D=D[:, k].T, u_free=fu[k], v_free=fv[k], sin2=sin2[k], cos=cos[k])
+                D=D[:, k].T, u_free=fu[k], v_free=fv[k], sin2=sin2, cos=cos[k])
+
+
+#: the second derivatives that weigh a minimum blend across a node within
+#: this fraction of an element of it (:func:`_second`)
+BLEND = 0.25
+#: third derivatives of the cubic Lagrange shape functions (nodes 0, 1, 1/3, 2/3)
+_D3N = np.array([-27.0, 27.0, 81.0, -81.0])
+#: second xi-derivatives of the cubic Lagrange shape functions at xi = 0 and 1
+_D2N0, _D2N1 = shape_functions(0.0)[2], shape_functions(1.0)[2]
+
+
+def _second(mesh, r, e, u):
+    """The second xi-derivative ``X''`` of the curve at ``(e, u)`` made
+    continuous across the nodes: the element's own, plus a share ``t`` of
+    the jump to the neighbour's at a node (in arclength units, ``X'' /
+    h^2``) within :data:`BLEND` of it, ``t = (1 - a / BLEND)^2 / 2`` at
+    ``a`` (the distance from the node, in elements).  At a node both
+    elements give the mean of their second derivatives; at the rod's ends
+    the element's own.  Linear in the positions: returns ``X''`` and
+    ``dX''/du`` ``(m, 3)``, the coefficients on the element's nodes ``a,
+    a_u`` ``(m, 4)`` and on its neighbours' ``b, b_u`` ``(m, 8)`` (the
+    element before, then after), and those nodes ``(m, 8)``."""
+    ne, vt = mesh.nodes.shape[0], mesh.vertices
+    closed = arclength_period(mesh) is not None
+    m = e.size
+    he = vt[e + 1] - vt[e]
+    a = shape_functions(u)[2].T.copy()
+    au = np.tile(_D3N, (m, 1))
+    b, bu = np.zeros((m, 8)), np.zeros((m, 8))
+    nodes = np.empty((m, 8), np.int64)
+    for j, (step, a_, sign, own, theirs) in enumerate(((-1, u, 1.0, _D2N0, _D2N1),
+                                                        (1, 1.0 - u, -1.0, _D2N1, _D2N0))):
+        g = np.clip(1.0 - a_ / BLEND, 0.0, 1.0)
+        t, dt = 0.5 * g * g, -sign * g / BLEND             # share and d share / du
+        nb = e + step
+        ok = np.ones(m, bool) if closed else (nb >= 0) & (nb < ne)
+        nb = np.mod(nb, ne) if closed else np.where(ok, nb, e)
+        ratio = (he / (vt[nb + 1] - vt[nb])) ** 2
+        t, dt = np.where(ok, t, 0.0), np.where(ok, dt, 0.0)
+        a -= t[:, None] * own
+        au -= dt[:, None] * own
+        b[:, 4 * j:4 * j + 4] = (t * ratio)[:, None] * theirs
+        bu[:, 4 * j:4 * j + 4] = (dt * ratio)[:, None] * theirs
+        nodes[:, 4 * j:4 * j + 4] = mesh.nodes[nb]
+    re, rn = r[mesh.nodes[e]], r[nodes]
+    X2 = np.einsum("mk,mkc->mc", a, re) + np.einsum("mk,mkc->mc", b, rn)
+    X2u = np.einsum("mk,mkc->mc", au, re) + np.einsum("mk,mkc->mc", bu, rn)
+    return X2, X2u, a, au, b, bu, nodes
 
 
 def _one_per_crossing(s, s_bar, dist, within, held=None):
@@ -771,30 +828,30 @@ def _collect(mesh, r, p):
                          p["weight_slope_l"], p["weight_slope_beta"])
 
 
-#: third derivatives of the cubic Lagrange shape functions (nodes 0, 1, 1/3, 2/3)
-_D3N = np.array([-27.0, 27.0, 81.0, -81.0])
-
-
-def _dsin2(pairs, re, rf, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
-    """``d(sin^2 beta)/dq`` ``(m, 24)`` of the pairs' minima, ``sin^2 beta
-    = det F_pp / (F_uu F_vv)`` (smooth Hessian of the element pair's
-    curves, the node-held parameter included), through the positions at
-    fixed parameters and the minimum's motion ``dp/dq = -S``."""
+def _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
+    """``d(sin^2 beta)/dq`` of the pairs' minima, ``sin^2 beta = det F_pp /
+    (F_uu F_vv)`` with the second derivatives continuous across nodes
+    (:func:`_second`; the node-held parameter included), through the
+    positions at fixed parameters and the minimum's motion ``dp/dq = -S``.
+    Returns the derivative on the pair's dofs ``(m, 24)``, on the dofs of
+    the elements beside its two ``(m, 48)``, and those dofs."""
     m = D.shape[0]
     z = np.zeros((m, 4))
-    N2u, N2v = shape_functions(pairs.u)[2].T, shape_functions(pairs.v)[2].T
-    X3, Y3 = np.einsum("k,mkc->mc", _D3N, re), np.einsum("k,mkc->mc", _D3N, rf)
+    X2c, X2u, ax, axu, bx, _, nx = _second(mesh, r, pairs.e, pairs.u)
+    Y2c, Y2v, ay, ayv, by, _, ny = _second(mesh, r, pairs.f, pairs.v)
     dot = lambda a, b: _dot(a.T, b.T)                                 # noqa: E731
-    Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2.T, Y1.T, Y2.T)
-    aX2 = np.concatenate([N2u, z], axis=1)
-    aY2 = np.concatenate([z, N2v], axis=1)
+    Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2c.T, Y1.T, Y2c.T)
+    aX2 = np.concatenate([ax, z], axis=1)
+    aY2 = np.concatenate([z, ay], axis=1)
     # at fixed parameters
-    dFuu = 2 * kron(aX1, X1) + kron(aD, X2) + kron(aX2, D)
-    dFvv = 2 * kron(aY1, Y1) - kron(aD, Y2) - kron(aY2, D)
+    dFuu = 2 * kron(aX1, X1) + kron(aD, X2c) + kron(aX2, D)
+    dFvv = 2 * kron(aY1, Y1) - kron(aD, Y2c) - kron(aY2, D)
     dFuv = -(kron(aX1, Y1) + kron(aY1, X1))
-    # along the parameters (a held parameter does not move: S's row is 0)
-    pu = [3 * dot(X1, X2) + dot(D, X3), -dot(Y1, X2)]                  # dFuu/du, /dv
-    pv = [-dot(X1, Y2), 3 * dot(Y1, Y2) - dot(D, Y3)]                  # dFvv/du, /dv
+    # along the parameters (a held parameter does not move: S's row is 0);
+    # |X'|^2 and X'.Y' move with the curves' own X'', D.X'' with the
+    # continuous one and its u-derivative
+    pu = [2 * dot(X1, X2) + dot(X1, X2c) + dot(D, X2u), -dot(Y1, X2c)]   # dFuu/du, /dv
+    pv = [-dot(X1, Y2c), 2 * dot(Y1, Y2) + dot(Y1, Y2c) - dot(D, Y2v)]   # dFvv/du, /dv
     pw = [-dot(X2, Y1), -dot(X1, Y2)]                                  # dFuv/du, /dv
     for k in (0, 1):
         dpk = -S[:, k]                                                 # (m, 24)
@@ -805,7 +862,15 @@ def _dsin2(pairs, re, rf, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
     ddet = dFuu * Fvv[:, None] + Fuu[:, None] * dFvv - 2 * Fuv[:, None] * dFuv
     dden = dFuu * Fvv[:, None] + Fuu[:, None] * dFvv
     inside = (det > 0) & (det < den)                        # not clipped to [0, 1]
-    return np.where(inside[:, None], ddet / den[:, None] - (det / den ** 2)[:, None] * dden, 0.0)
+    own = np.where(inside[:, None], ddet / den[:, None] - (det / den ** 2)[:, None] * dden, 0.0)
+    # the neighbours enter F_uu (X side) and F_vv (Y side) through D.X''
+    # only: d sin^2 = (1 - sin^2) (F_vv dF_uu + F_uu dF_vv) / den
+    c = np.where(inside, (1.0 - det / den) / den, 0.0)
+    nb = lambda b, V: (b[:, :, None] * V[:, None, :]).reshape(m, 24)  # noqa: E731
+    beside = np.concatenate([(c * Fvv)[:, None] * nb(bx, D), -(c * Fuu)[:, None] * nb(by, D)],
+                            axis=1)
+    dofs = (6 * np.concatenate([nx, ny], axis=1)[:, :, None] + np.arange(3)).reshape(m, 48)
+    return own, beside, dofs
 
 
 def carry(old_key, old_lam, new_key):
@@ -911,12 +976,14 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
         # (dp/dq = -S) and on its own dofs (probe_dq)
         ws, wl = pairs.weight_slope[:, None], pairs.weight_slope_l[:, None]
         dw = ws * (-np.einsum("mk,mkq->mq", pairs.probe_dp, S) - lq) + wl * lq
-        dw = dw + pairs.weight_slope_beta[:, None] * _dsin2(
-            pairs, re, rf, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S)
+        own, beside, bdofs = _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S)
+        wb = pairs.weight_slope_beta[:, None]
+        dw = dw + wb * own
         blocks += [-fN[:, None, None] * lq[:, :, None] * dw[:, None, :],
-                   -fN[:, None, None] * lq[:, :, None] * (ws * pairs.probe_dq)[:, None, :]]
-        rows += [dofs, dofs]
-        cols += [dofs, pairs.probe_dofs]
+                   -fN[:, None, None] * lq[:, :, None] * (ws * pairs.probe_dq)[:, None, :],
+                   -fN[:, None, None] * lq[:, :, None] * (wb * beside)[:, None, :]]
+        rows += [dofs, dofs, dofs]
+        cols += [dofs, pairs.probe_dofs, bdofs]
     ij = [(np.broadcast_to(a[:, :, None], b.shape).ravel(),
            np.broadcast_to(c[:, None, :], b.shape).ravel()) for a, c, b in zip(rows, cols, blocks)]
     K = sp.csc_matrix((np.concatenate([b.ravel() for b in blocks]),
