@@ -27,20 +27,12 @@ of the fixed penalty to the tolerances; only the path to it changes.
 import numpy as np
 
 from .contact.friction_assembly import coulomb_misfit, multiplier_updates
+from .contact import OVERLAP_FAIL
 from .contact.law import gap, uzawa_update
 
 #: the adaptive penalty raises the penalty at a point whose violation did
 #: not drop below this fraction of the last one (Bertsekas' 0.25)
 PENALTY_DROP = 0.25
-#: a state whose strands overlap by more than this fraction of the contact
-#: radius between slave points (away from the rod's ends) is not converged;
-#: an overlap between the tolerance and this is recorded (Step.contact
-#: .min_distance) and noted in Result.log.  Point-to-curve contact at Gauss
-#: points cannot hold two convex strands that touch between slave points
-#: to the tolerance (the squeezed loop: 1e-3 eps at 13 eps elements); a
-#: strand passing through another (a crossing between slave points: 0.9 eps
-#: measured) is caught.
-OVERLAP_FAIL = 0.1
 
 
 def augmented_lagrangian(problem, solve_pass):

@@ -191,6 +191,9 @@ class PseudoDynamics:
         self.away_from = None
         self.dt_saddle = np.inf
         self.pushes = 0
+        #: a push off a saddle with friction on in this load step (the
+        #: frictionless test is then only sufficient: :meth:`unstable_at`)
+        self.pushed_with_friction = False
         self.log = DynamicsLog()
         self.inner_opts = replace(self.opts,
                                   max_iterations=min(self.opts.max_iterations, DAMPED_ITERATIONS),
@@ -252,7 +255,7 @@ class PseudoDynamics:
         # no clearance cap here: plies in contact slide along each other in
         # a polish; a passage is caught by the AL loop's true-distance check
         ok = rep.converged and np.abs(r1 - r).max() <= POLISH_REACH * rod.length
-        self.unstable = ok and morse_index(p, r1, R1, self.lam_of(t)) > 0
+        self.unstable = ok and self.unstable_at(r1, R1, t)
         ok = ok and not self.unstable
         self.log.add("polish", rep, ok, t, p)
         self.saddle = (r1, R1) if self.unstable else None
@@ -287,10 +290,27 @@ class PseudoDynamics:
         self.dt_saddle = 0.5 * q / abs(low) if low < 0 else np.inf
         size = p.push_size * 2.0 ** min(self.pushes, 10)   # a push that did not get away
         self.pushes += 1
+        self.pushed_with_friction = self.pushed_with_friction or bool(p.friction)
         # no polish until the flow is well away from the saddle (Newton would
         # converge back onto it)
         self.away_from = (r, SADDLE_DISTANCE * size)
         return p.push(r, R, mode_b, size)
+
+    def unstable_at(self, r, R, t):
+        """Whether the equilibrium ``(r, R)`` at ``lam(t)`` is a saddle to
+        push off (Morse index of the frictionless tangent above 0).  With
+        friction that test is sufficient, not necessary: friction may hold
+        a state the frictionless rod would leave (docs/stability.md).  As in
+        the load stepping's relaxation (:mod:`skfem_rod.solver`), such a
+        state is pushed off once per load step; found again after that
+        push, it is kept.  Pushed again and again with sizes doubling (up to
+        2^10 half radii), the frictional plectoneme's damped steps were
+        started from strands pushed into each other by 0.58 eps, and no
+        step size brought Newton to converge from there (the stop at 1.94
+        turns, docs/pseudo-dynamics.md)."""
+        if self.problem.friction and self.pushed_with_friction:
+            return False
+        return morse_index(self.problem, r, R, self.lam_of(t)) > 0
 
     def near_saddle(self, r):
         """True while ``r`` is within the distance of the last saddle that
@@ -364,7 +384,7 @@ class PseudoDynamics:
             near = self.near_saddle(r)
             dt = min(dt, self.dt_saddle)
             if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:
-                if morse_index(p, r, R, self.lam_of(t)) > 0:
+                if self.unstable_at(r, R, t):
                     # at rest next to the saddle (the push was too small): again
                     r, R = self.push(r, R, self.lam_of(t))
                     dt = min(dt, self.dt_saddle)
@@ -405,12 +425,13 @@ def follow(S, r, R, nominal, times, values, callback):
         saved = dyn.save()
         r1, R1, rep = S.advance(r, R, lam, lam_new, prev)
         ok = rep.converged and clearance_ok(rod, r, r1)
-        saddle = ok and morse_index(p, r1, R1, lam_new) > 0
+        saddle = ok and dyn.unstable_at(r1, R1, t_new)
         if saddle:
             ok, rep.reason = False, "it converged to an unstable equilibrium"
         dyn.log.add("static", rep, ok, t_new, p)
         if ok:
             t, prev, r, R = t_new, (lam, r, R), r1, R1
+            dyn.pushed_with_friction = False
             dyn.log.damped_per_record.append(0)
             keep(S, lam_new, r, R, rep, t, callback)
             streak += 1
@@ -431,6 +452,7 @@ def follow(S, r, R, nominal, times, values, callback):
                                  f"{out[1]}")
             return result
         r, R, t, rep, steps = out
+        dyn.pushed_with_friction = False
         dyn.log.damped_per_record.append(steps)
         result.log.append(f"{steps} damped steps to an equilibrium at lam={lam_of(t):.6g} "
                           f"(t={t:.6g})")

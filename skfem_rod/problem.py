@@ -252,11 +252,32 @@ class Problem:
     def push(self, r, R, mode, size):
         """``(r, R)`` moved along ``mode`` (dof basis; e.g. an unstable mode)
         so that the largest nodal move is ``size`` and the largest nodal
-        rotation 0.1 rad."""
+        rotation 0.1 rad; with contact, halved (at most
+        :data:`PUSH_HALVINGS` times) while it would make the strands'
+        true overlap larger than it was and than ``OVERLAP_FAIL`` eps, the
+        most a converged state may have (:mod:`skfem_rod.augmented`).
+        (A mode of a state in contact can carry strands into each other: in
+        the frictional plectoneme pushes of several radii left them
+        overlapping by 0.58 eps, and the damped steps from there failed at
+        every step size.)"""
         m = self.to_spatial(mode).reshape(-1, 6)
         a = min(size / max(np.abs(m[:, :3]).max(), 1e-300),
                 0.1 / max(np.abs(m[:, 3:]).max(), 1e-300))
-        return self.update(r, R, mode, a)
+        r1, R1 = self.update(r, R, mode, a)
+        c = self.contact
+        if c is None:
+            return r1, R1
+        from .contact import OVERLAP_FAIL
+        from .contact.crossing import min_distance
+        overlap = lambda x: 2 * c.radius - min_distance(self.mesh, x, c.radius,    # noqa: E731
+                                                        c.exclusion).distance
+        allowed = max(overlap(r), OVERLAP_FAIL * c.radius)
+        for _ in range(PUSH_HALVINGS):
+            if overlap(r1) <= allowed:
+                break
+            a *= 0.5
+            r1, R1 = self.update(r, R, mode, a)
+        return r1, R1
 
     @property
     def push_size(self):
@@ -524,6 +545,9 @@ NEIGHBOUR_SKIN = 0.5
 #: a position correction follows a Newton update that raised the residual
 #: norm by more than this factor (:func:`position_correction`)
 CORRECT_ABOVE = 10.0
+#: halvings of a push off a saddle that would carry strands into each other
+#: (:meth:`Problem.push`)
+PUSH_HALVINGS = 10
 
 
 class State(NamedTuple):

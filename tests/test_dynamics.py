@@ -167,3 +167,73 @@ def test_twisted_rod_snaps_into_a_loop_as_the_reference(contact_solve):
     for r, st in zip(recs, res.steps):
         assert st.contact.penetration <= tol
         assert r["link"] == pytest.approx(r["turns"], abs=1e-3)     # no strand passage
+
+
+def _hairpin(eps=0.05, gap=0.2, contact=True):
+    """A rod bent into a hairpin: two straight arms 1 long, ``(2 + gap)
+    eps`` apart, joined by a half circle; contact radius ``eps``."""
+    a = (1.0 + 0.5 * gap) * eps
+
+    def r_of_s(s):
+        th = np.clip((s - 1.0) / a, 0.0, np.pi)
+        arm2 = np.clip(s - 1.0 - np.pi * a, 0.0, None)
+        return np.c_[np.minimum(s, 1.0) + a * np.sin(th) - arm2, a - a * np.cos(th), 0 * s]
+
+    rod = Rod(geometry.curve(r_of_s, 2.0 + np.pi * a), section(), 24)
+    rod.clamp("start")
+    if contact:
+        rod.enable_contact(radius=eps)
+    return rod
+
+
+@pytest.mark.parametrize("contact", [True, False])
+def test_a_push_off_a_saddle_does_not_carry_a_strand_into_another(contact):
+    """A push along a mode that moves one arm of a hairpin onto the other
+    (0.2 eps apart) by 2 eps: with contact on it is halved until the
+    strands' true overlap is at most ``OVERLAP_FAIL`` = 0.1 eps, the most
+    a converged state may have (to 0.25 eps: an overlap of 0.05 eps);
+    without contact it is the full
+    2 eps.  Pushes of several radii (sizes doubling after each push that
+    did not get away) once left the frictional plectoneme's strands
+    0.58 eps into each other."""
+    from skfem_rod.contact.crossing import min_distance
+    eps = 0.05
+    rod = _hairpin(eps, contact=contact)
+    p = Problem(rod)
+    r, R = rod.r0, rod.R0
+    mode = np.zeros((rod.r0.shape[0], 6))
+    mode[r[:, 1] < 0.5 * eps, 1] = 1.0                 # the first arm, towards the second
+    mode = p.to_basis(mode.ravel())
+    r1, _ = p.push(r, R, mode, 2.0 * eps)
+    moved = np.abs(r1 - r).max()
+    if contact:
+        assert moved == pytest.approx(0.25 * eps)
+        md = min_distance(p.mesh, r1, eps, rod.contact.exclusion).distance
+        assert md == pytest.approx(2 * eps - 0.05 * eps, rel=1e-6)
+    else:
+        assert moved == pytest.approx(2.0 * eps)
+
+
+@pytest.mark.parametrize("gamma_T", [0.3, 0.0])
+def test_with_friction_a_saddle_is_pushed_off_once_per_load_step(gamma_T):
+    """The straight rod twisted past Greenhill's threshold is a saddle by
+    the frictionless tangent the stability checks read.  With friction that
+    test is only sufficient (friction may hold a state the frictionless rod
+    would leave): after one push in the load step the state counts as
+    stable, as in the load stepping's relaxation.  Without friction it
+    stays a saddle, push or not."""
+    from skfem_rod.dynamics import PseudoDynamics
+    from skfem_rod.options import SolverOptions
+    from skfem_rod.rotations import expm
+    from skfem_rod.solver import LoadStepper
+    rod = demo.straight_rod(10.0, 16, turns=2.0)
+    rod.enable_contact(radius=0.01, gamma_T=gamma_T)
+    S = LoadStepper(rod, SolverOptions(dynamics=True))
+    dyn = PseudoDynamics(S, lambda t: t, np.array([0.0, 1.0]))
+    s = rod.mesh.s_nodes
+    R = np.array([expm(np.array([2 * np.pi * 2.0 * si / 10.0, 0.0, 0.0])) @ R0
+                  for si, R0 in zip(s, rod.R0)])
+    assert morse_index(S.problem, rod.r0, R, 1.0) > 0
+    assert dyn.unstable_at(rod.r0, R, 1.0)
+    dyn.push(rod.r0, R, 1.0)
+    assert dyn.unstable_at(rod.r0, R, 1.0) == (gamma_T == 0.0)

@@ -18,6 +18,16 @@ def _field(default, kind, doc, **kw):
     return field(default=default, metadata={"spec": Spec(kind, doc, **kw)})
 
 
+#: a state whose strands overlap by more than this fraction of the contact
+#: radius between slave points (away from the rod's ends) is not converged;
+#: an overlap between the tolerance and this is recorded (Step.contact
+#: .min_distance) and noted in Result.log.  Point-to-curve contact at Gauss
+#: points cannot hold two convex strands that touch between slave points
+#: to the tolerance (the squeezed loop: 1e-3 eps at 13 eps elements); a
+#: strand passing through another (a crossing between slave points: 0.9 eps
+#: measured) is caught.
+OVERLAP_FAIL = 0.1
+
 #: options derived from others when not given (None): name -> how
 _DERIVED = ("margin", "mu_T", "mu_R", "crossing_penalty")
 
