@@ -254,8 +254,9 @@ class Problem:
         so that the largest nodal move is ``size`` and the largest nodal
         rotation 0.1 rad; with contact, halved (at most
         :data:`PUSH_HALVINGS` times) while it would make the strands'
-        true overlap larger than it was and than ``OVERLAP_FAIL`` eps, the
-        most a converged state may have (:mod:`skfem_rod.augmented`).
+        true overlap larger than it was and than
+        :data:`skfem_rod.contact.OVERLAP_FAIL` eps, the most a converged
+        state may have.
         (A mode of a state in contact can carry strands into each other: in
         the frictional plectoneme pushes of several radii left them
         overlapping by 0.58 eps, and the damped steps from there failed at

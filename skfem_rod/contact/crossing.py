@@ -446,14 +446,14 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     strict = np.where(both, det / np.maximum(huu * hvv, 1e-300),
                       np.where(fu, huu / n1, np.where(fv, hvv / n2, 1.0)))
     ok &= ~((fu & (huu <= 0)) | (fv & (hvv <= 0))) & (strict > 0)
-    # the effective angle that classifies it (_classify): the smooth one of
-    # the element pair's curves, a held parameter included.  A minimum on a
+    # the effective angle that weighs it (_weigh): the smooth one of the
+    # element pair's curves, a held parameter included.  A minimum on a
     # node is strict by the kink of the C0 centreline, but a kink of a
     # converged curve is tiny: strands wrapped around each other (a flat
     # minimum, beta = 0) have their minimum hop from one strand's node to
     # the other's between states 1e-7 apart (measured in the knot: u = 1,
     # v = 0.1175 <-> u = 0.8825, v = 0), and a pair following it 2-cycled.
-    # (For a strict interior minimum this is ``strict`` itself.)
+    # (Away from nodes, for a strict interior minimum, this is ``strict``.)
     # The curves' second derivatives jump at the nodes (the C1 contact curve
     # too), and with them the curvature terms D.X'' of the Hessian: measured
     # in the plectoneme at 200 elements (curvature 11, D = 2 eps), one node
@@ -489,9 +489,9 @@ def _second(mesh, r, e, u):
     ``a`` (the distance from the node, in elements).  At a node both
     elements give the mean of their second derivatives; at the rod's ends
     the element's own.  Linear in the positions: returns ``X''`` and
-    ``dX''/du`` ``(m, 3)``, the coefficients on the element's nodes ``a,
-    a_u`` ``(m, 4)`` and on its neighbours' ``b, b_u`` ``(m, 8)`` (the
-    element before, then after), and those nodes ``(m, 8)``."""
+    ``dX''/du`` ``(m, 3)``, the coefficients of ``X''`` on the element's
+    nodes ``(m, 4)`` and on its neighbours' ``(m, 8)`` (the element before,
+    then after), and those nodes ``(m, 8)``."""
     ne, vt = mesh.nodes.shape[0], mesh.vertices
     closed = arclength_period(mesh) is not None
     m = e.size
@@ -517,7 +517,7 @@ def _second(mesh, r, e, u):
     re, rn = r[mesh.nodes[e]], r[nodes]
     X2 = np.einsum("mk,mkc->mc", a, re) + np.einsum("mk,mkc->mc", b, rn)
     X2u = np.einsum("mk,mkc->mc", au, re) + np.einsum("mk,mkc->mc", bu, rn)
-    return X2, X2u, a, au, b, bu, nodes
+    return X2, X2u, a, b, nodes
 
 
 def _one_per_crossing(s, s_bar, dist, within, held=None):
@@ -837,8 +837,8 @@ def _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
     the elements beside its two ``(m, 48)``, and those dofs."""
     m = D.shape[0]
     z = np.zeros((m, 4))
-    X2c, X2u, ax, axu, bx, _, nx = _second(mesh, r, pairs.e, pairs.u)
-    Y2c, Y2v, ay, ayv, by, _, ny = _second(mesh, r, pairs.f, pairs.v)
+    X2c, X2u, ax, bx, nx = _second(mesh, r, pairs.e, pairs.u)
+    Y2c, Y2v, ay, by, ny = _second(mesh, r, pairs.f, pairs.v)
     dot = lambda a, b: _dot(a.T, b.T)                                 # noqa: E731
     Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2c.T, Y1.T, Y2c.T)
     aX2 = np.concatenate([ax, z], axis=1)
