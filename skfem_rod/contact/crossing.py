@@ -828,8 +828,9 @@ def _collect(mesh, r, p):
                          p["weight_slope_l"], p["weight_slope_beta"])
 
 
-def _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
-    """``d(sin^2 beta)/dq`` of the pairs' minima, ``sin^2 beta = det F_pp /
+def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
+    """``d(sin^2 beta)/dq`` of the minima at ``(e, u)``, ``(f, v)`` (the
+    per-pair arrays of :func:`crossing_work`), ``sin^2 beta = det F_pp /
     (F_uu F_vv)`` with the second derivatives continuous across nodes
     (:func:`_second`; the node-held parameter included), through the
     positions at fixed parameters and the minimum's motion ``dp/dq = -S``.
@@ -837,8 +838,9 @@ def _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
     the elements beside its two ``(m, 48)``, and those dofs."""
     m = D.shape[0]
     z = np.zeros((m, 4))
-    X2c, X2u, ax, bx, nx = _second(mesh, r, pairs.e, pairs.u)
-    Y2c, Y2v, ay, by, ny = _second(mesh, r, pairs.f, pairs.v)
+    kron = lambda a, c: (a[:, :, None] * c[:, None, :]).reshape(m, 24)   # noqa: E731
+    X2c, X2u, ax, bx, nx = _second(mesh, r, e, u)
+    Y2c, Y2v, ay, by, ny = _second(mesh, r, f, v)
     dot = lambda a, b: _dot(a.T, b.T)                                 # noqa: E731
     Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2c.T, Y1.T, Y2c.T)
     aX2 = np.concatenate([ax, z], axis=1)
@@ -866,8 +868,7 @@ def _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S):
     # the neighbours enter F_uu (X side) and F_vv (Y side) through D.X''
     # only: d sin^2 = (1 - sin^2) (F_vv dF_uu + F_uu dF_vv) / den
     c = np.where(inside, (1.0 - det / den) / den, 0.0)
-    nb = lambda b, V: (b[:, :, None] * V[:, None, :]).reshape(m, 24)  # noqa: E731
-    beside = np.concatenate([(c * Fvv)[:, None] * nb(bx, D), -(c * Fuu)[:, None] * nb(by, D)],
+    beside = np.concatenate([(c * Fvv)[:, None] * kron(bx, D), -(c * Fuu)[:, None] * kron(by, D)],
                             axis=1)
     dofs = (6 * np.concatenate([nx, ny], axis=1)[:, :, None] + np.arange(3)).reshape(m, 48)
     return own, beside, dofs
@@ -971,19 +972,24 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
     rows, cols = [dofs], [dofs]
     blocks = [Ke]
     if fade and pairs.weight_slope is not None:
-        # the weight's derivative: w(rise, l), rise = (lowest probe's
-        # distance) - l, the probe riding on the pair's parameters
-        # (dp/dq = -S) and on its own dofs (probe_dq)
-        ws, wl = pairs.weight_slope[:, None], pairs.weight_slope_l[:, None]
-        dw = ws * (-np.einsum("mk,mkq->mq", pairs.probe_dp, S) - lq) + wl * lq
-        own, beside, bdofs = _dsin2(mesh, r, pairs, D, X1, X2, Y1, Y2, aD, aX1, aY1, kron, S)
-        wb = pairs.weight_slope_beta[:, None]
-        dw = dw + wb * own
-        blocks += [-fN[:, None, None] * lq[:, :, None] * dw[:, None, :],
-                   -fN[:, None, None] * lq[:, :, None] * (ws * pairs.probe_dq)[:, None, :],
-                   -fN[:, None, None] * lq[:, :, None] * (wb * beside)[:, None, :]]
-        rows += [dofs, dofs, dofs]
-        cols += [dofs, pairs.probe_dofs, bdofs]
+        # the weight's derivative, for the pairs whose weight has a slope
+        # (in a fade zone; most pairs sit at weight 1): w(rise, l, sin^2
+        # beta), rise = (lowest probe's distance) - l, the probe riding on
+        # the pair's parameters (dp/dq = -S) and on its own dofs (probe_dq)
+        ws, wl, wb = pairs.weight_slope, pairs.weight_slope_l, pairs.weight_slope_beta
+        i = np.flatnonzero((ws != 0) | (wl != 0) | (wb != 0))
+        if i.size:
+            ws, wl, wb = ws[i, None], wl[i, None], wb[i, None]
+            dw = ws * (-np.einsum("mk,mkq->mq", pairs.probe_dp[i], S[i]) - lq[i]) + wl * lq[i]
+            own, beside, bdofs = _dsin2(mesh, r, pairs.e[i], pairs.f[i], pairs.u[i], pairs.v[i],
+                                        D[i], X1[i], X2[i], Y1[i], Y2[i], aD[i], aX1[i],
+                                        aY1[i], S[i])
+            dw = dw + wb * own
+            g = -fN[i, None, None] * lq[i, :, None]
+            blocks += [g * dw[:, None, :], g * (ws * pairs.probe_dq[i])[:, None, :],
+                       g * (wb * beside)[:, None, :]]
+            rows += [dofs[i]] * 3
+            cols += [dofs[i], pairs.probe_dofs[i], bdofs]
     ij = [(np.broadcast_to(a[:, :, None], b.shape).ravel(),
            np.broadcast_to(c[:, None, :], b.shape).ravel()) for a, c, b in zip(rows, cols, blocks)]
     K = sp.csc_matrix((np.concatenate([b.ravel() for b in blocks]),
