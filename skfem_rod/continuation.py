@@ -50,7 +50,7 @@ import numpy as np
 from .augmented import augmented_lagrangian
 from .kinematics import ElementRotationError
 from .newton import Border, Report, newton
-from .options import make_options
+from .options import Deadline, make_options
 from .problem import Increment, Problem, State, spin_cap
 from .results import Result
 from .stability import modes
@@ -148,6 +148,8 @@ class Follower:
         self.rod = rod
         self.opts = opts
         self.problem = Problem(rod)
+        #: the wall clock of ``time_limit``, from the start of the path
+        self.deadline = Deadline(opts.time_limit)
         # prescribed motion per unit load factor, on the constrained dofs only
         self.pfix = self.problem.prescribed(1.0)
         self.pfix[self.problem.free] = 0.0
@@ -408,6 +410,10 @@ def _march(F, result, point, po, lam_stop, stop):
     ds, ds_min, ds_max = po.steps(point.tl)
     s_path, k = 0.0, 0
     while k < po.max_steps:
+        if F.deadline.passed():
+            result.finish(False, f"stopped at load factor {point.lam:.6g} after {k} steps: "
+                                 f"{F.deadline.reason()}")
+            return
         h, new, info, land = F.advance(point, ds, lam_stop)
         if not info.converged:
             ds = 0.5 * h

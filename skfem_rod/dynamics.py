@@ -79,6 +79,9 @@ DT_FLOOR = 1e-8
 #: after a push off a saddle, no polish until the flow is this many push
 #: sizes away from it
 SADDLE_DISTANCE = 4.0
+#: a push whose largest nodal move is below this fraction of the size asked
+#: for was held short (rotation limit, contact): :meth:`PseudoDynamics.came_back`
+CAPPED = 0.99
 #: dt grows to at most this multiple of its first value
 DT_CEIL = 1e8
 #: a damped step is at rest (a load step) when the viscous force it ends
@@ -194,6 +197,14 @@ class PseudoDynamics:
         #: a push off a saddle with friction on in this load step (the
         #: frictionless test is then only sufficient: :meth:`unstable_at`)
         self.pushed_with_friction = False
+        #: the largest nodal move of the last push (from ``away_from[0]``),
+        #: and whether the rotation limit or the contact halvings held it
+        #: short of the size asked for (a larger push would move no farther)
+        self.pushed_by, self.push_capped = 0.0, False
+        #: the flow came back, at rest, toward a saddle it was pushed off in
+        #: this load step: the saddle is held (by contact), not left
+        #: (:meth:`came_back`)
+        self.held = False
         self.log = DynamicsLog()
         self.inner_opts = replace(self.opts,
                                   max_iterations=min(self.opts.max_iterations, DAMPED_ITERATIONS),
@@ -294,7 +305,29 @@ class PseudoDynamics:
         # no polish until the flow is well away from the saddle (Newton would
         # converge back onto it)
         self.away_from = (r, SADDLE_DISTANCE * size)
-        return p.push(r, R, mode_b, size)
+        r1, R1 = p.push(r, R, mode_b, size)
+        self.pushed_by = float(np.abs(r1 - r).max())
+        self.push_capped = self.pushed_by < CAPPED * size
+        return r1, R1
+
+    def came_back(self, r):
+        """Whether the flow, at rest at ``r`` next to the saddle it was
+        pushed off, is closer to it than the push put it although the push
+        was as large as a push can be (:attr:`push_capped`).  A push that
+        comes back is doubled (a push too small, or in a direction a larger
+        one gets past); once the rotation limit or the contact holds the
+        push, doubling moves no farther, and a state the flow comes back to
+        from there is held in the direction the linearized test calls
+        unstable (that test reads the tangent with the inactive gaps left
+        out and the crossing weights frozen: a mode that closes a gap looks
+        unstable although contact stops it).  Such a saddle is kept, as
+        friction's (:meth:`unstable_at`).  Pushed again instead, the
+        frictionless plectoneme past 2.19 turns came back 14 times, sizes
+        doubling to 2^10 half radii, and made no progress
+        (docs/pseudo-dynamics.md)."""
+        if self.away_from is None or not self.push_capped:
+            return False
+        return float(np.abs(r - self.away_from[0]).max()) < self.pushed_by
 
     def unstable_at(self, r, R, t):
         """Whether the equilibrium ``(r, R)`` at ``lam(t)`` is a saddle to
@@ -308,7 +341,7 @@ class PseudoDynamics:
         started from strands pushed into each other by 0.58 eps, and no
         step size brought Newton to converge from there (the stop at 1.94
         turns, docs/pseudo-dynamics.md)."""
-        if self.problem.friction and self.pushed_with_friction:
+        if self.held or (self.problem.friction and self.pushed_with_friction):
             return False
         return morse_index(self.problem, r, R, self.lam_of(t)) > 0
 
@@ -337,6 +370,9 @@ class PseudoDynamics:
         why = "no damped step"
         next_polish = np.inf                 # viscous force that allows a polish
         while steps < opts.max_damped_steps:
+            if self.S.deadline.passed():
+                return None, (f"at pseudo-time {t:.6g} after {steps} damped steps: "
+                              f"{self.S.deadline.reason()}")
             tries += 1
             h = h_nominal * min(1.0, max(dt / (LOAD_RAMP * self.dt0), quasi))
             t_new = t_target if t + h >= t_target - 1e-14 else t + h
@@ -385,10 +421,16 @@ class PseudoDynamics:
             dt = min(dt, self.dt_saddle)
             if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:
                 if self.unstable_at(r, R, t):
-                    # at rest next to the saddle (the push was too small): again
-                    r, R = self.push(r, R, self.lam_of(t))
-                    dt = min(dt, self.dt_saddle)
-                    continue
+                    if not self.came_back(r):
+                        # at rest next to the saddle (the push was too small): again
+                        r, R = self.push(r, R, self.lam_of(t))
+                        dt = min(dt, self.dt_saddle)
+                        continue
+                    self.held = True
+                    self.S.result.log.append(
+                        f"the flow came back to the saddle it was pushed off at t={t:.6g} "
+                        f"(at rest {np.abs(r - self.away_from[0]).max():.3g} from it, pushed "
+                        f"{self.pushed_by:.3g}): kept as held by contact")
                 near = False                     # at rest in a stable state nearby
                 self.away_from, self.dt_saddle, self.pushes = None, np.inf, 0
             if t >= t_target - 1e-14 and vis <= min(opts.dynamics_tol, next_polish) \
@@ -418,6 +460,10 @@ def follow(S, r, R, nominal, times, values, callback):
     result.dynamics = dyn.log
     t, h, streak, prev = 0.0, nominal, 0, None
     while t < 1.0 - 1e-14:
+        if S.deadline.passed():
+            result.finish(False, f"stopped at load factor {lam_of(t):.6g} (pseudo-time "
+                                 f"{t:.6g}): {S.deadline.reason()}")
+            return result
         nxt = times[times > t + 1e-14][0]
         hh = min(h, nxt - t)
         t_new = nxt if hh == nxt - t else t + hh
@@ -431,7 +477,7 @@ def follow(S, r, R, nominal, times, values, callback):
         dyn.log.add("static", rep, ok, t_new, p)
         if ok:
             t, prev, r, R = t_new, (lam, r, R), r1, R1
-            dyn.pushed_with_friction = False
+            dyn.pushed_with_friction = dyn.held = False
             dyn.log.damped_per_record.append(0)
             keep(S, lam_new, r, R, rep, t, callback)
             streak += 1
@@ -452,7 +498,7 @@ def follow(S, r, R, nominal, times, values, callback):
                                  f"{out[1]}")
             return result
         r, R, t, rep, steps = out
-        dyn.pushed_with_friction = False
+        dyn.pushed_with_friction = dyn.held = False
         dyn.log.damped_per_record.append(steps)
         result.log.append(f"{steps} damped steps to an equilibrium at lam={lam_of(t):.6g} "
                           f"(t={t:.6g})")

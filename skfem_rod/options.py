@@ -9,6 +9,7 @@ unknown names.  The contact options are
 """
 import difflib
 import numbers
+import time
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -146,6 +147,11 @@ class SolverOptions:
         full either way).
     max_damped_steps : accepted damped steps per damped phase before the
         solve gives up.
+    time_limit : wall-clock seconds the solve may take (default 0: no
+        limit).  Checked before every load step, damped step, gradient-flow
+        step and continuation step; when it has run out the solve stops
+        there (``converged`` false) with every converged step kept and the
+        message saying so.
     position_correction : after a Newton update that raised the residual,
         one Newton step on the positions alone with the rotations held
         (default true; :func:`skfem_rod.newton.position_correction`): the
@@ -229,6 +235,9 @@ class SolverOptions:
                                                  "contact)")
     max_damped_steps: int = _opt(5000, "integer", "damped steps per damped phase before "
                                                   "giving up", lo=1, hi=10_000_000)
+    time_limit: float = _opt(0.0, "number", "wall-clock seconds the solve may take (0: no "
+                                            "limit); it stops with every converged step "
+                                            "kept", lo=0.0, lo_open=False)
 
     def __post_init__(self):
         for f in fields(self):
@@ -236,6 +245,21 @@ class SolverOptions:
         if self.dynamics and self.snap == "relax":
             raise ValueError("dynamics=True and snap='relax' exclude each other: the "
                              "pseudo-dynamics crosses the snaps itself (use snap='cut')")
+
+
+class Deadline:
+    """The wall clock of ``SolverOptions.time_limit`` from the start of a
+    solve: :meth:`passed` is checked by the solver loops before each step."""
+
+    def __init__(self, time_limit):
+        self.limit = float(time_limit)
+        self.end = time.monotonic() + self.limit if self.limit > 0 else np.inf
+
+    def passed(self):
+        return time.monotonic() > self.end
+
+    def reason(self):
+        return f"the time limit ran out (time_limit={self.limit:g} s)"
 
 
 def option_specs(cls=None):

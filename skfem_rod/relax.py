@@ -102,8 +102,10 @@ class GradientFlow:
     starts at twice the first step size the last one accepted (else at
     ``SolverOptions.relax_dt``)."""
 
-    def __init__(self, problem):
+    def __init__(self, problem, deadline=None):
         self.problem = problem
+        #: the solve's :class:`~skfem_rod.options.Deadline` (a flow stops when it passed)
+        self.deadline = deadline
         self.W = metric(problem.rod, problem.fixed)
         self.dt = None
 
@@ -134,6 +136,9 @@ class GradientFlow:
         if descent and (presc is None or not np.any(presc)):
             g0 = problem.evaluate(r, R, lam, tangent=False).residual
         while steps < opts.max_flow_steps:
+            if self.deadline is not None and self.deadline.passed():
+                why = self.deadline.reason()
+                break
             tries += 1
             with problem.damped(1.0 / dt, W, r, R):
                 r1, R1, _, rep = newton(problem, r, R, lam, inner, prescribed=presc)

@@ -27,7 +27,7 @@ import warnings
 import numpy as np
 
 from .augmented import step
-from .options import SolverOptions, make_options
+from .options import Deadline, SolverOptions, make_options
 from .problem import Problem, clearance_ok, spin_cap
 from .relax import GradientFlow
 from .results import Result
@@ -119,7 +119,8 @@ class LoadStepper:
         self.rod, self.opts = rod, opts
         self.problem = Problem(rod)
         self.result = Result(rod)
-        self.flow = GradientFlow(self.problem)
+        self.deadline = Deadline(opts.time_limit)
+        self.flow = GradientFlow(self.problem, self.deadline)
 
     def initial(self, r0, R0, stressed):
         """Step 0 at load factor 0: an equilibrium solve from a stressed start
@@ -299,6 +300,10 @@ def follow_path(S, r, R, n_steps, times, values, callback):
     nominal = first_step(rod, n_steps, times, values, opts)
     t, dt, streak, prev = 0.0, nominal, 0, None
     while t < 1.0 - 1e-14:
+        if S.deadline.passed():
+            result.finish(False, f"stopped at load factor {lam_of(t):.6g} (pseudo-time "
+                                 f"{t:.6g}): {S.deadline.reason()}")
+            return result
         nxt = times[times > t + 1e-14][0]            # do not step over a turning point
         h = min(dt, nxt - t)
         t_new = nxt if h == nxt - t else t + h

@@ -237,3 +237,36 @@ def test_with_friction_a_saddle_is_pushed_off_once_per_load_step(gamma_T):
     assert dyn.unstable_at(rod.r0, R, 1.0)
     dyn.push(rod.r0, R, 1.0)
     assert dyn.unstable_at(rod.r0, R, 1.0) == (gamma_T == 0.0)
+
+
+@pytest.mark.parametrize("radius", [0.01, 1.0])
+def test_a_saddle_the_flow_comes_back_to_from_a_capped_push_is_kept(radius):
+    """The straight rod twisted past Greenhill's threshold, pushed along its
+    unstable mode by half the contact radius: 0.005 moves the rod that far
+    (radius 0.01); 0.5 is held to 0.066 by the 0.1 rad rotation limit
+    (radius 1), and a larger push would move no farther.  A state at rest
+    closer to the saddle than the push put it counts as having come back
+    (then the saddle is held, not left) only after such a capped push; a
+    smaller push is doubled instead, and a state farther away has left."""
+    from skfem_rod.dynamics import PseudoDynamics
+    from skfem_rod.options import SolverOptions
+    from skfem_rod.rotations import expm
+    from skfem_rod.solver import LoadStepper
+    rod = demo.straight_rod(10.0, 16, turns=2.0)
+    rod.enable_contact(radius=radius)
+    S = LoadStepper(rod, SolverOptions(dynamics=True))
+    dyn = PseudoDynamics(S, lambda t: t, np.array([0.0, 1.0]))
+    s = rod.mesh.s_nodes
+    R = np.array([expm(np.array([2 * np.pi * 2.0 * si / 10.0, 0.0, 0.0])) @ R0
+                  for si, R0 in zip(s, rod.R0)])
+    saddle = rod.r0
+    assert not dyn.came_back(saddle)                     # no push yet
+    r1, _ = dyn.push(saddle, R, 1.0)
+    moved = np.abs(r1 - saddle).max()
+    assert dyn.pushed_by == moved
+    if radius == 1.0:
+        assert dyn.push_capped and moved == pytest.approx(0.0665, abs=1e-3)
+    else:
+        assert not dyn.push_capped and moved == pytest.approx(0.5 * radius)
+    assert dyn.came_back(saddle + 0.5 * (r1 - saddle)) == dyn.push_capped
+    assert not dyn.came_back(saddle + 2.0 * (r1 - saddle))
