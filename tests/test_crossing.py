@@ -418,7 +418,7 @@ def test_fading_pair_force_tangent(degrees, seed):
     # the frozen-weight tangent the stability checks read (fade=False): the
     # weight times the tangent of the same pair at full weight, symmetric
     Kf = crossing_work(mesh, r, cp, np.zeros(1), 1.0, EPS, fade=False)[2]
-    full = dataclasses.replace(cp, weight=np.ones(1), weight_slope=None)
+    full = dataclasses.replace(cp, weight=np.ones(1), slope=None)
     K1 = crossing_work(mesh, r, full, np.zeros(1), 1.0, EPS)[2]
     assert abs(Kf - cp.weight[0] * K1).max() <= 1e-12 * abs(K1).max()
     assert abs(Kf - Kf.T).max() <= 1e-12 * abs(Kf).max()

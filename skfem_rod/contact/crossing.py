@@ -292,16 +292,28 @@ class CrossingPairs:
     length: np.ndarray = None   # (m,) |X(u) - Y(v)| of the acting pair (distance:
                                 # the Uzawa gap's, see crossing_pairs)
     weight: np.ndarray = None   # (m,) the pair's share of its force (:func:`_weigh`)
-    weight_slope: np.ndarray = None   # (m,) d weight / d rise
-    probe_dofs: np.ndarray = None     # (m, 24) position dofs of the lowest probe
-    probe_dq: np.ndarray = None       # (m, 24) its distance's derivative there
-    probe_dp: np.ndarray = None       # (m, 2) and in the pair's parameters u, v
-    weight_slope_l: np.ndarray = None  # (m,) d weight / d l at a fixed rise
-    weight_slope_beta: np.ndarray = None  # (m,) d weight / d sin^2 beta
+    slope: "WeightSlope" = None  # the weight's derivatives (the tangent's fade blocks)
 
     @property
     def size(self):
         return self.e.size
+
+
+@dataclass
+class WeightSlope:
+    """The derivatives of the pairs' weights ``w(rise, l, sin^2 beta)``
+    (:func:`_weigh`) that :func:`crossing_work`'s tangent reads."""
+    rise: np.ndarray        # (m,) dw / d rise
+    length: np.ndarray      # (m,) dw / d l at a fixed rise
+    beta: np.ndarray        # (m,) dw / d sin^2 beta
+    probe_dofs: np.ndarray  # (m, 24) position dofs of the lowest probe
+    probe_dq: np.ndarray    # (m, 24) its distance's derivative there
+    probe_dp: np.ndarray    # (m, 2) and in the pair's parameters u, v
+
+    def fading(self):
+        """Indices of the pairs whose weight has a slope (in a fade zone;
+        most pairs sit at weight 1 with all three slopes 0)."""
+        return np.flatnonzero((self.rise != 0) | (self.length != 0) | (self.beta != 0))
 
 
 def _solve(mesh, e, f, r_el, every=False):
@@ -824,8 +836,9 @@ def _collect(mesh, r, p):
     return CrossingPairs(e, f, u, v, p["s"], p["s_bar"], p["distance"],
                          p["D"].reshape(-1, 3) / p["length"][:, None], cos, p["key"],
                          p["u_free"], p["v_free"], p["beta"], p["length"], p["weight"],
-                         p["weight_slope"], p["probe_dofs"], p["probe_dq"], p["probe_dp"],
-                         p["weight_slope_l"], p["weight_slope_beta"])
+                         WeightSlope(p["weight_slope"], p["weight_slope_l"],
+                                     p["weight_slope_beta"], p["probe_dofs"], p["probe_dq"],
+                                     p["probe_dp"]))
 
 
 def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
@@ -971,25 +984,25 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
                              - fN[:, None, None] * lqq)
     rows, cols = [dofs], [dofs]
     blocks = [Ke]
-    if fade and pairs.weight_slope is not None:
-        # the weight's derivative, for the pairs whose weight has a slope
-        # (in a fade zone; most pairs sit at weight 1): w(rise, l, sin^2
-        # beta), rise = (lowest probe's distance) - l, the probe riding on
-        # the pair's parameters (dp/dq = -S) and on its own dofs (probe_dq)
-        ws, wl, wb = pairs.weight_slope, pairs.weight_slope_l, pairs.weight_slope_beta
-        i = np.flatnonzero((ws != 0) | (wl != 0) | (wb != 0))
+    if fade and pairs.slope is not None:
+        # the weight's derivative, for the pairs whose weight has a slope:
+        # w(rise, l, sin^2 beta), rise = (lowest probe's distance) - l, the
+        # probe riding on the pair's parameters (dp/dq = -S) and on its own
+        # dofs (probe_dq)
+        ps = pairs.slope
+        i = ps.fading()
         if i.size:
-            ws, wl, wb = ws[i, None], wl[i, None], wb[i, None]
-            dw = ws * (-np.einsum("mk,mkq->mq", pairs.probe_dp[i], S[i]) - lq[i]) + wl * lq[i]
+            ws, wl, wb = ps.rise[i, None], ps.length[i, None], ps.beta[i, None]
+            dw = ws * (-np.einsum("mk,mkq->mq", ps.probe_dp[i], S[i]) - lq[i]) + wl * lq[i]
             own, beside, bdofs = _dsin2(mesh, r, pairs.e[i], pairs.f[i], pairs.u[i], pairs.v[i],
                                         D[i], X1[i], X2[i], Y1[i], Y2[i], aD[i], aX1[i],
                                         aY1[i], S[i])
             dw = dw + wb * own
             g = -fN[i, None, None] * lq[i, :, None]
-            blocks += [g * dw[:, None, :], g * (ws * pairs.probe_dq[i])[:, None, :],
+            blocks += [g * dw[:, None, :], g * (ws * ps.probe_dq[i])[:, None, :],
                        g * (wb * beside)[:, None, :]]
             rows += [dofs[i]] * 3
-            cols += [dofs[i], pairs.probe_dofs[i], bdofs]
+            cols += [dofs[i], ps.probe_dofs[i], bdofs]
     ij = [(np.broadcast_to(a[:, :, None], b.shape).ravel(),
            np.broadcast_to(c[:, None, :], b.shape).ravel()) for a, c, b in zip(rows, cols, blocks)]
     K = sp.csc_matrix((np.concatenate([b.ravel() for b in blocks]),
