@@ -174,9 +174,9 @@ class Problem:
             from .contact.curve import ContactCurve
             from .contact.search import slave_points
             #: the curve the contact acts on (contact/curve.py): None, the
-            #: rod's centreline; else a ContactCurve (curve="smooth" or "spline")
-            self.contact_curve = ContactCurve(rod.mesh, self.contact.curve) \
-                if self.contact.curve != "elements" else None
+            #: rod's centreline; else a ContactCurve (option curve="smooth")
+            self.contact_curve = ContactCurve(rod.mesh) if self.contact.curve == "smooth" \
+                else None
             self.slaves = slave_points(rod.mesh, self.contact.n_slave)
             #: the sparse patterns of the contact tangents, kept between evaluations
             self.contact_patterns = ContactPatterns()

@@ -7,7 +7,7 @@ import pytest
 
 from skfem_rod import Rod
 from skfem_rod.contact.assembly import contact_work
-from skfem_rod.contact.curve import ContactCurve, smoothing_map, spline_map
+from skfem_rod.contact.curve import ContactCurve, smoothing_map
 from skfem_rod.contact.search import search, slave_points
 from skfem_rod.element import shape_functions
 from skfem_rod.mesh import RodMesh
@@ -31,33 +31,28 @@ def _curve_values(mesh, r_curve, xi):
     return np.einsum("kx,ekc->exc", N, rc), np.einsum("kx,ekc->exc", dN, rc)
 
 
-@pytest.mark.parametrize("kind", ["smooth", "spline"])
 @pytest.mark.parametrize("graded", [False, True])
-def test_a_cubic_centreline_is_its_own_smooth_curve(graded, kind):
+def test_a_cubic_centreline_is_its_own_smooth_curve(graded):
     """Where the centreline is one cubic (all elements on one polynomial of
     degree 3), both one-sided derivatives are exact, and the smooth curve
-    is the centreline (the spline's de Boor-Fix control points reproduce
-    cubics, the phantom vertices beyond the ends included)."""
+    is the centreline."""
     ne = 7
     mesh = RodMesh(2.0, ne, vertices=_graded(ne) if graded else None)
     s = mesh.s_nodes
     r = np.stack([s, 1 - 2 * s**2, 0.5 * s**3 - s], axis=1)
-    cc = ContactCurve(mesh, kind)
+    cc = ContactCurve(mesh)
     assert np.abs(cc.positions(r) - r[mesh.nodes].reshape(-1, 3)).max() <= 1e-13
 
 
-@pytest.mark.parametrize("kind", ["smooth", "spline"])
 @pytest.mark.parametrize("closed", [False, True])
-def test_the_smooth_curve_is_C1_and_continuous(closed, kind):
+def test_the_smooth_curve_is_C1_and_continuous(closed):
     """One position and one arclength tangent at every vertex (at the
-    closure vertex too on a ring), while the centreline's tangent jumps;
-    the spline has one second derivative there too (C2), the C1 cubic
-    not."""
+    closure vertex too on a ring), while the centreline's tangent jumps."""
     rng = np.random.default_rng(3)
     ne = 9
     mesh = RodMesh(3.0, ne, vertices=_graded(ne, 3.0, seed=1), closed=closed)
     r = rng.normal(size=(mesh.n_nodes, 3))
-    cc = ContactCurve(mesh, kind)
+    cc = ContactCurve(mesh)
     y, y1 = _curve_values(mesh, cc.positions(r), np.array([0.0, 1.0]))
     h = np.diff(mesh.vertices)[:, None]
     t = y1 / h[:, :, None]                              # d/ds
@@ -65,19 +60,14 @@ def test_the_smooth_curve_is_C1_and_continuous(closed, kind):
     pos_jump = np.abs(y[nxt, 0] - y[:ne - 1 + closed, 1]).max()
     tan_jump = np.abs(t[nxt, 0] - t[:ne - 1 + closed, 1]).max()
     assert pos_jump <= 1e-12 and tan_jump <= 1e-12 * np.abs(t).max()
-    _, _, d2N = shape_functions(np.array([0.0, 1.0]))
-    k = np.einsum("kx,ekc->exc", d2N, cc.positions(r).reshape(-1, 4, 3)) / h[:, :, None] ** 2
-    k_jump = np.abs(k[nxt, 0] - k[:ne - 1 + closed, 1]).max() / np.abs(k).max()
-    assert (k_jump <= 1e-12) if kind == "spline" else (k_jump > 0.01), k_jump
     # the centreline itself kinks (the check above can fail)
     _, dN, _ = shape_functions(np.array([0.0, 1.0]))
     tl = np.einsum("kx,ekc->exc", dN, r[mesh.nodes]) / h[:, :, None]
     assert np.abs(tl[nxt, 0] - tl[:ne - 1 + closed, 1]).max() > 0.1
 
 
-@pytest.mark.parametrize("kind", ["smooth", "spline"])
 @pytest.mark.parametrize("graded", [False, True])
-def test_smooth_curve_converges_at_h4(graded, kind):
+def test_smooth_curve_converges_at_h4(graded):
     """On a helix, the smooth curve's largest distance from the exact curve
     (dense sampling) falls as h^4 under refinement, like the P3 centreline:
     the rate fitted over four meshes."""
@@ -88,8 +78,7 @@ def test_smooth_curve_converges_at_h4(graded, kind):
         v = _graded(ne, 3.0, seed=ne) if graded else None
         mesh = RodMesh(3.0, ne, vertices=v)
         xi = np.linspace(0.0, 1.0, 41)
-        y, _ = _curve_values(mesh, ContactCurve(mesh, kind).positions(exact(mesh.s_nodes)),
-                             xi)
+        y, _ = _curve_values(mesh, ContactCurve(mesh).positions(exact(mesh.s_nodes)), xi)
         s = mesh.vertices[:-1, None] + np.diff(mesh.vertices)[:, None] * xi
         errs.append(np.abs(y - exact(s)).max())
         hs.append(np.diff(mesh.vertices).max())
@@ -110,26 +99,6 @@ def test_smoothing_map_rows_sum_to_one():
         assert set(cols) <= set(near)
 
 
-def test_spline_map_rows_sum_to_one():
-    """The spline's map: rows sum to one (a rigid translation moves every
-    curve node by the same vector), and an element's curve reads the
-    elements up to two away (its four B-splines' control points, each from
-    the two elements at its vertex)."""
-    mesh = RodMesh(1.0, 8, vertices=_graded(8, 1.0))
-    S = spline_map(mesh)
-    assert np.allclose(np.asarray(S.sum(axis=1)).ravel(), 1.0, atol=1e-13)
-    for e in range(8):
-        cols = np.unique(S[4 * e:4 * e + 4].nonzero()[1])
-        near = np.unique(mesh.nodes[max(e - 2, 0):e + 3])
-        assert set(cols) <= set(near)
-        assert set(mesh.nodes[e]) <= set(cols)
-
-
-def test_spline_on_a_closed_rod_needs_four_elements():
-    with pytest.raises(ValueError, match="at least 4 elements, got 3"):
-        spline_map(RodMesh(1.0, 3, closed=True))
-
-
 def _hairpin_problem(curve, gamma_T=0.0, crossing=False, seed=0):
     rng = np.random.default_rng(seed)
     eps = 0.105                                          # legs 0.2 apart: pressed
@@ -143,14 +112,13 @@ def _hairpin_problem(curve, gamma_T=0.0, crossing=False, seed=0):
     return p, r, rod.R0, rng
 
 
-@pytest.mark.parametrize("curve", ["smooth", "spline"])
 @pytest.mark.parametrize("gamma_T, crossing", [(0.0, False), (0.0, True), (0.3, False)])
-def test_smooth_contact_residual_and_tangent_agree(gamma_T, crossing, curve):
+def test_smooth_contact_residual_and_tangent_agree(gamma_T, crossing):
     """The contact on the smooth curve pulled back to the rod's dofs: the
     tangent is the derivative of the residual (central differences along a
     random update of positions and spins), and the frictionless contact
     tangent is symmetric."""
-    p, r, R, rng = _hairpin_problem(curve, gamma_T, crossing)
+    p, r, R, rng = _hairpin_problem("smooth", gamma_T, crossing)
     ev = p.evaluate(r, R, 0.0)
     assert (ev.contact.fN > 0).sum() > 20
     d = rng.normal(size=p.mesh.n_dofs)
@@ -237,29 +205,3 @@ def test_pressed_hairpin_on_the_smooth_curve_matches_the_centreline():
     (F0, x0), (F1, x1) = out["elements"], out["smooth"]
     assert F0 > 0 and abs(F1 - F0) <= 1e-6 * F0, (F0, F1)
     assert np.linalg.norm(x1 - x0) <= 1e-5 * eps, np.linalg.norm(x1 - x0) / eps
-
-
-def test_pressed_hairpin_on_the_spline_converges_to_the_centreline():
-    """The same scene on the C2 spline (curve="spline") at 40 and 80
-    elements: it converges at every step, and its answer approaches the
-    centreline's under refinement (measured: total contact force 8.4e-6
-    and 3.3e-6 of it apart).  Not to 1e-6 at 40 elements as the C1 cubic:
-    the hairpin's reference curvature jumps where its legs meet the half
-    circle, and a C2 curve smooths a curvature jump over the elements
-    beside it (its largest offset from this centreline is 2.2e-2 eps at 40
-    elements, 6.5e-3 at 80; the C1 cubic's 6.8e-3 and 1.3e-3)."""
-    eps = SEC.radius
-    gaps = []
-    for n in (40, 80):
-        out = {}
-        for curve in ("elements", "spline"):
-            rod = Rod(hairpin(eps, 4 * eps), SEC, n)
-            rod.clamp("start").add_force("end", [0, -0.6, 0])
-            rod.enable_contact(penalty=10 * eps**4 / SEC.EI1, curve=curve)
-            res = rod.solve(n_steps=6)
-            assert res.converged, res.message
-            for st in res.steps:
-                assert st.contact.penetration <= rod.contact.tolerance * eps
-            out[curve] = res.steps[-1].contact.total_force
-        gaps.append(abs(out["spline"] - out["elements"]) / out["elements"])
-    assert gaps[0] <= 1e-5 and gaps[1] <= 0.5 * gaps[0], gaps

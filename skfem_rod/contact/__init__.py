@@ -98,10 +98,7 @@ class ContactOptions:
         C1 cubic through the nodes (tangents at the vertices from the two
         elements beside them), O(h^4) from the centreline: the contact
         normal and distance have no kinks where a closest point passes a
-        node; ``"spline"``, a C2 cubic B-spline with knots at the nodes
-        (de Boor-Fix control points from the centreline, O(h^4) from it):
-        the curvature, and with it the Hessian of the strand distance that
-        weighs crossing pairs, has no jumps at the nodes either.
+        node.
     crossing : add point-to-point contact pairs at the closest points of
         crossing strands (:mod:`.crossing`); default False.
     crossing_penalty : compliance of the crossing pairs' point law (length
@@ -145,9 +142,8 @@ class ContactOptions:
     rotational_slip: str = _field("twist", "choice", "what the rotational friction law acts on",
                                   choices=("twist", "circumferential", "pivot"))
     curve: str = _field("elements", "choice", "the curve the contact acts on: the P3 "
-                                             "centreline (C0 at nodes), a C1 cubic through "
-                                             "its nodes or a C2 cubic B-spline",
-                          choices=("elements", "smooth", "spline"))
+                                             "centreline (C0 at nodes) or a C1 cubic through "
+                                             "its nodes", choices=("elements", "smooth"))
     crossing: bool = _field(False, "boolean", "point-to-point pairs at the closest points of "
                                               "crossing strands")
     crossing_penalty: float = _field(None, "number", "compliance of the crossing pairs "

@@ -1,6 +1,5 @@
-r"""The curve the contact acts on: the rod's P3 centreline, a C1 cubic
-through its nodes (option ``curve = "smooth"``) or a C2 cubic B-spline
-(``curve = "spline"``, :func:`spline_map`).
+r"""The curve the contact acts on: the rod's P3 centreline, or a C1 cubic
+through its nodes (option ``curve = "smooth"``).
 
 *Why.*  The cubic Lagrange centreline is C0 at the element ends: its
 tangent turns there by a small angle (O(h^3) of the curvature's third
@@ -48,20 +47,6 @@ own nodes per element, the rod's vertices), and their force and tangent are
 pulled back to the rod's dofs with the dof map ``T``: ``f = T^T f_c``,
 ``K = T^T K_c T`` (exact: the map is linear).
 
-*The C2 spline* (``curve = "spline"``).  The C1 cubic's second derivative
-still jumps at the vertices (by 18 % at a node of the 200-element
-plectoneme), and with it the Hessian of the strand distance that finds and
-weighs crossing minima (:mod:`.crossing`): minima stick to node lines and
-split between them.  The cubic B-spline with knots at the vertices is C2;
-its control points are the de Boor-Fix dual functionals of the centreline
-at the vertices (:func:`spline_map`), which reproduce cubics, so it is
-O(h^4) from a smooth centreline too.  It does not pass through the nodes,
-and where the centreline's curvature jumps (a straight leg meeting an arc
-in a reference shape) it smooths the jump over the elements beside it:
-there it is O(h^2) from the centreline (2.2e-2 eps at 40 elements on the
-hairpin of the tests, against the C1 cubic's 6.8e-3).  An element's curve
-reads the elements up to two away.
-
 The true-distance check after a step (``augmented.true_distance``) keeps
 measuring the rod's own centreline.
 """
@@ -73,7 +58,7 @@ import scipy.sparse as sp
 from ..element import shape_functions
 
 #: the curves the contact can act on
-CURVES = ("elements", "smooth", "spline")
+CURVES = ("elements", "smooth")
 
 #: local order of the Lagrange points (scikit-fem's): xi = 0, 1, 1/3, 2/3
 _XI = np.array([0.0, 1.0, 1.0 / 3.0, 2.0 / 3.0])
@@ -150,74 +135,6 @@ def smoothing_map(mesh):
     return S
 
 
-def spline_map(mesh):
-    """The sparse ``(4 ne, n_nodes)`` map of the rod's nodal positions to the
-    nodes of the C2 contact curve (option ``curve = "spline"``): the cubic
-    B-spline with knots at the vertices whose control points are the
-    de Boor-Fix functionals of the centreline,
-
-        P_k = r_k - (h_a - h_b) / 3 r'_k - h_a h_b / 6 r''_k
-
-    at vertex ``k`` (``h_a``, ``h_b`` the knot spacings before and after it),
-    with ``r'``, ``r''`` the weighted means of the two elements' one-sided
-    derivatives (weights as :func:`smoothing_map`'s).  The functionals
-    reproduce cubics, so the curve is O(h^4) from the centreline and a
-    cubic centreline is its own curve.  Beyond the ends of an open rod the
-    knots go on at the end element's length, and the phantom vertices'
-    control points read the end element's cubic continued there."""
-    from scipy.interpolate import BSpline
-    nodes, v = mesh.nodes, np.asarray(mesh.vertices, float)
-    ne = nodes.shape[0]
-    h = np.diff(v)
-    closed = bool(mesh.closed)
-    if closed and ne < 4:
-        raise ValueError(f"curve='spline' on a closed rod needs at least 4 elements, got {ne}")
-    # knots: the vertices, three more on each side
-    if closed:
-        L = v[-1] - v[0]
-        t = np.concatenate([v[-4:-1] - L, v, v[1:4] + L])
-    else:
-        t = np.concatenate([v[0] - h[0] * np.arange(3, 0, -1), v,
-                            v[-1] + h[-1] * np.arange(1, 4)])
-    x = (v[:-1, None] + _XI[None, :] * h[:, None]).ravel()          # curve nodes
-    B = BSpline.design_matrix(x, t, 3).tocoo()                      # (4 ne, ne + 3)
-    # control point j sits at the vertex k = j - 1 (k = -1 .. ne + 1)
-    _, D1, D2 = shape_functions(np.array([0.0, 1.0]))
-    V = shape_functions(np.array([-1.0, 2.0]))                      # the phantoms
-    rows, cols, vals = [], [], []
-
-    def add(j, e, c):
-        rows.append(np.full(4, j))
-        cols.append(nodes[e])
-        vals.append(c)
-    for j in range(ne + 3):
-        k = j - 1
-        ha, hb = t[j + 2] - t[j + 1], t[j + 3] - t[j + 2]
-        if closed or 0 < k < ne:
-            a, b = (k - 1) % ne, k % ne
-            wa = h[b] ** 3 / (h[a] ** 3 + h[b] ** 3)
-            wb = 1.0 - wa
-            add(j, b, np.eye(4)[0])                                  # r_k
-            add(j, a, -(ha - hb) / 3 * wa * D1[:, 1] / h[a]
-                - ha * hb / 6 * wa * D2[:, 1] / h[a] ** 2)
-            add(j, b, -(ha - hb) / 3 * wb * D1[:, 0] / h[b]
-                - ha * hb / 6 * wb * D2[:, 0] / h[b] ** 2)
-            continue
-        # an end vertex or a phantom: the end element's cubic at xi
-        e, i = ((0, 0) if k == 0 else (ne - 1, 1) if k == ne else
-                (0, 2) if k == -1 else (ne - 1, 3))
-        if i < 2:
-            N, dN, d2N = np.eye(4)[i], D1[:, i], D2[:, i]
-        else:
-            N, dN, d2N = V[0][:, i - 2], V[1][:, i - 2], V[2][:, i - 2]
-        add(j, e, N - (ha - hb) / 3 * dN / h[e] - ha * hb / 6 * d2N / h[e] ** 2)
-    Lam = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                        shape=(ne + 3, mesh.n_nodes)).tocsr()
-    S = (sp.csr_matrix((B.data, (B.row, B.col)), shape=B.shape) @ Lam).tocsr()
-    S.eliminate_zeros()
-    return S
-
-
 class ContactCurve:
     """The smooth contact curve of a rod mesh: its :class:`CurveMesh`, the
     position map ``S`` and the dof map ``T`` (module docstring).
@@ -233,13 +150,13 @@ class ContactCurve:
     True
     """
 
-    def __init__(self, mesh, kind="smooth"):
+    def __init__(self, mesh):
         ne = mesh.nodes.shape[0]
         self.mesh = CurveMesh(nodes=np.arange(4 * ne).reshape(ne, 4),
                               vertices=mesh.vertices, closed=bool(mesh.closed))
         #: the rod node at each curve node (rotations are carried unchanged)
         self.select = mesh.nodes.ravel()
-        self.S = spline_map(mesh) if kind == "spline" else smoothing_map(mesh)
+        self.S = smoothing_map(mesh)
         S = self.S.tocoo()
         n_c = 4 * ne
         rows = np.concatenate([6 * S.row[:, None] + np.arange(3),
