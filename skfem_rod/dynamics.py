@@ -432,7 +432,12 @@ class PseudoDynamics:
                         f"(at rest {np.abs(r - self.away_from[0]).max():.3g} from it, pushed "
                         f"{self.pushed_by:.3g}): kept as held by contact")
                 near = False                     # at rest in a stable state nearby
-                self.away_from, self.dt_saddle, self.pushes = None, np.inf, 0
+                self.away_from, self.pushes = None, 0
+                if not self.held:
+                    self.dt_saddle = np.inf
+                # held: dt stays below the saddle's bound, so each damped step
+                # stays convex along the mode contact holds (longer steps
+                # went along it into the contact: Newton residuals 20-110)
             if t >= t_target - 1e-14 and vis <= min(opts.dynamics_tol, next_polish) \
                     and not near:
                 done = self.polish(r, R, t)
@@ -478,6 +483,7 @@ def follow(S, r, R, nominal, times, values, callback):
         if ok:
             t, prev, r, R = t_new, (lam, r, R), r1, R1
             dyn.pushed_with_friction = dyn.held = False
+            dyn.dt_saddle = np.inf
             dyn.log.damped_per_record.append(0)
             keep(S, lam_new, r, R, rep, t, callback)
             streak += 1
@@ -499,6 +505,7 @@ def follow(S, r, R, nominal, times, values, callback):
             return result
         r, R, t, rep, steps = out
         dyn.pushed_with_friction = dyn.held = False
+        dyn.dt_saddle = np.inf
         dyn.log.damped_per_record.append(steps)
         result.log.append(f"{steps} damped steps to an equilibrium at lam={lam_of(t):.6g} "
                           f"(t={t:.6g})")
