@@ -345,6 +345,14 @@ class PseudoDynamics:
             return False
         return morse_index(self.problem, r, R, self.lam_of(t)) > 0
 
+    def recorded(self, steps):
+        """An equilibrium is recorded after ``steps`` damped steps: the
+        rules of one load step start afresh (friction's one push, a held
+        saddle and its ``dt`` bound)."""
+        self.pushed_with_friction = self.held = False
+        self.dt_saddle = np.inf
+        self.log.damped_per_record.append(steps)
+
     def near_saddle(self, r):
         """True while ``r`` is within the distance of the last saddle that
         the flow must leave before a polish."""
@@ -482,9 +490,7 @@ def follow(S, r, R, nominal, times, values, callback):
         dyn.log.add("static", rep, ok, t_new, p)
         if ok:
             t, prev, r, R = t_new, (lam, r, R), r1, R1
-            dyn.pushed_with_friction = dyn.held = False
-            dyn.dt_saddle = np.inf
-            dyn.log.damped_per_record.append(0)
+            dyn.recorded(0)
             keep(S, lam_new, r, R, rep, t, callback)
             streak += 1
             if streak >= 2:
@@ -504,9 +510,7 @@ def follow(S, r, R, nominal, times, values, callback):
                                  f"{out[1]}")
             return result
         r, R, t, rep, steps = out
-        dyn.pushed_with_friction = dyn.held = False
-        dyn.dt_saddle = np.inf
-        dyn.log.damped_per_record.append(steps)
+        dyn.recorded(steps)
         result.log.append(f"{steps} damped steps to an equilibrium at lam={lam_of(t):.6g} "
                           f"(t={t:.6g})")
         keep(S, lam_of(t), r, R, rep, t, callback)

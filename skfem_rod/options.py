@@ -256,6 +256,7 @@ class Deadline:
         self.end = time.monotonic() + self.limit if self.limit > 0 else np.inf
 
     def passed(self):
+        """True once the time limit has run out (never without one)."""
         return time.monotonic() > self.end
 
     def reason(self):
