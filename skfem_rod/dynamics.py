@@ -166,6 +166,15 @@ def morse_index(problem, r, R, lam):
     return inertia(Ks, -floor)
 
 
+def in_contact(problem, r, R, lam):
+    """Whether any contact pair (Gauss or crossing) carries a force at
+    ``(r, R, lam)``."""
+    if problem.contact is None:
+        return False
+    c = problem.evaluate(r, R, lam, tangent=False).contact
+    return bool(np.any(c.fN > 0) or (c.crossing_fN is not None and np.any(c.crossing_fN > 0)))
+
+
 def viscous_inner(problem, W, c, r_ref, R_ref):
     """The inner solve of one implicit Euler step: :func:`~skfem_rod.newton.newton`
     with the viscous term ``c W (y (-) y_ref)`` switched on (same signature)."""
@@ -340,10 +349,15 @@ class PseudoDynamics:
         2^10 half radii), the frictional plectoneme's damped steps were
         started from strands pushed into each other by 0.58 eps, and no
         step size brought Newton to converge from there (the stop at 1.94
-        turns, docs/pseudo-dynamics.md)."""
-        if self.held or (self.problem.friction and self.pushed_with_friction):
+        turns, docs/pseudo-dynamics.md).  Both rules need contact at the
+        state: without it the frictionless test is exact (friction acts
+        through the contact forces), and at the twisted rod's Greenhill
+        saddle, before any contact, the frictional rule recorded the pushed
+        saddle as an equilibrium."""
+        p, lam = self.problem, self.lam_of(t)
+        if (self.held or (p.friction and self.pushed_with_friction)) and in_contact(p, r, R, lam):
             return False
-        return morse_index(self.problem, r, R, self.lam_of(t)) > 0
+        return morse_index(p, r, R, lam) > 0
 
     def recorded(self, steps):
         """An equilibrium is recorded after ``steps`` damped steps: the

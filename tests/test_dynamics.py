@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.dynamics import DynamicsLog, morse_index
+from skfem_rod.dynamics import DynamicsLog, in_contact, morse_index
 from skfem_rod.problem import Problem
 
 from helpers import load_demo
@@ -215,13 +215,16 @@ def test_a_push_off_a_saddle_does_not_carry_a_strand_into_another(contact):
 
 
 @pytest.mark.parametrize("gamma_T", [0.3, 0.0])
-def test_with_friction_a_saddle_is_pushed_off_once_per_load_step(gamma_T):
+def test_without_contact_a_saddle_stays_a_saddle_after_a_push(gamma_T):
     """The straight rod twisted past Greenhill's threshold is a saddle by
     the frictionless tangent the stability checks read.  With friction that
-    test is only sufficient (friction may hold a state the frictionless rod
-    would leave): after one push in the load step the state counts as
-    stable, as in the load stepping's relaxation.  Without friction it
-    stays a saddle, push or not."""
+    test is only sufficient where contact is (friction may hold a state the
+    frictionless rod would leave): there a state found again after one push
+    in the load step is kept.  This saddle has no contact force, so friction
+    cannot hold it: it stays a saddle after the push, with friction or
+    without.  (Before the rule asked for contact, the frictional
+    plectoneme recorded the pushed Greenhill saddle at 1.25 turns as an
+    equilibrium, x_end 0.9976, no contact.)"""
     from skfem_rod.dynamics import PseudoDynamics
     from skfem_rod.options import SolverOptions
     from skfem_rod.rotations import expm
@@ -235,8 +238,25 @@ def test_with_friction_a_saddle_is_pushed_off_once_per_load_step(gamma_T):
                   for si, R0 in zip(s, rod.R0)])
     assert morse_index(S.problem, rod.r0, R, 1.0) > 0
     assert dyn.unstable_at(rod.r0, R, 1.0)
+    assert not in_contact(S.problem, rod.r0, R, 1.0)
     dyn.push(rod.r0, R, 1.0)
-    assert dyn.unstable_at(rod.r0, R, 1.0) == (gamma_T == 0.0)
+    assert dyn.pushed_with_friction == (gamma_T > 0)
+    assert dyn.unstable_at(rod.r0, R, 1.0)
+
+
+def test_in_contact_sees_the_forces_of_a_pressed_hairpin():
+    """``in_contact`` (the condition of the frictional and held-saddle
+    rules): the hairpin's arms 0.2 eps apart carry no contact force; with
+    the first arm moved 0.4 eps onto the second (0.2 eps into it) they do;
+    without contact there is none."""
+    eps = 0.05
+    rod = _hairpin(eps)
+    p = Problem(rod)
+    pressed = rod.r0.copy()
+    pressed[rod.r0[:, 1] < 0.5 * eps, 1] += 0.4 * eps
+    assert not in_contact(p, rod.r0, rod.R0, 0.0)
+    assert in_contact(p, pressed, rod.R0, 0.0)
+    assert not in_contact(Problem(_hairpin(eps, contact=False)), pressed, rod.R0, 0.0)
 
 
 @pytest.mark.parametrize("radius", [0.01, 1.0])
