@@ -349,8 +349,8 @@ class PseudoDynamics:
         2^10 half radii), the frictional plectoneme's damped steps were
         started from strands pushed into each other by 0.58 eps, and no
         step size brought Newton to converge from there (the stop at 1.94
-        turns, docs/pseudo-dynamics.md).  Both rules need contact at the
-        state: without it the frictionless test is exact (friction acts
+        turns, docs/pseudo-dynamics.md).  This rule and the held saddle's
+        (:meth:`came_back`) need contact at the state: without it the frictionless test is exact (friction acts
         through the contact forces), and at the twisted rod's Greenhill
         saddle, before any contact, the frictional rule recorded the pushed
         saddle as an equilibrium."""
