@@ -350,10 +350,11 @@ class PseudoDynamics:
         started from strands pushed into each other by 0.58 eps, and no
         step size brought Newton to converge from there (the stop at 1.94
         turns, docs/pseudo-dynamics.md).  This rule and the held saddle's
-        (:meth:`came_back`) need contact at the state: without it the frictionless test is exact (friction acts
-        through the contact forces), and at the twisted rod's Greenhill
-        saddle, before any contact, the frictional rule recorded the pushed
-        saddle as an equilibrium."""
+        (:meth:`came_back`) need contact at the state: without it the
+        frictionless test is exact (friction acts through the contact
+        forces), and at the twisted rod's Greenhill saddle, before any
+        contact, the frictional rule recorded the pushed saddle as an
+        equilibrium."""
         p, lam = self.problem, self.lam_of(t)
         if (self.held or (p.friction and self.pushed_with_friction)) and in_contact(p, r, R, lam):
             return False

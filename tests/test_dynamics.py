@@ -214,6 +214,24 @@ def test_a_push_off_a_saddle_does_not_carry_a_strand_into_another(contact):
         assert moved == pytest.approx(2.0 * eps)
 
 
+def _twisted_saddle(radius, gamma_T=0.0):
+    """The straight rod (L = 10 lambda, 16 elements) twisted by 2 turns,
+    past Greenhill's threshold: a saddle with no contact force; contact of
+    ``radius`` on.  Returns the rod, its LoadStepper, a PseudoDynamics and
+    the sections' rotations."""
+    from skfem_rod.dynamics import PseudoDynamics
+    from skfem_rod.options import SolverOptions
+    from skfem_rod.rotations import expm
+    from skfem_rod.solver import LoadStepper
+    rod = demo.straight_rod(10.0, 16, turns=2.0)
+    rod.enable_contact(radius=radius, gamma_T=gamma_T)
+    S = LoadStepper(rod, SolverOptions(dynamics=True))
+    dyn = PseudoDynamics(S, lambda t: t, np.array([0.0, 1.0]))
+    R = np.array([expm(np.array([2 * np.pi * 2.0 * si / 10.0, 0.0, 0.0])) @ R0
+                  for si, R0 in zip(rod.mesh.s_nodes, rod.R0)])
+    return rod, S, dyn, R
+
+
 @pytest.mark.parametrize("gamma_T", [0.3, 0.0])
 def test_without_contact_a_saddle_stays_a_saddle_after_a_push(gamma_T):
     """The straight rod twisted past Greenhill's threshold is a saddle by
@@ -225,17 +243,7 @@ def test_without_contact_a_saddle_stays_a_saddle_after_a_push(gamma_T):
     without.  (Before the rule asked for contact, the frictional
     plectoneme recorded the pushed Greenhill saddle at 1.25 turns as an
     equilibrium, x_end 0.9976, no contact.)"""
-    from skfem_rod.dynamics import PseudoDynamics
-    from skfem_rod.options import SolverOptions
-    from skfem_rod.rotations import expm
-    from skfem_rod.solver import LoadStepper
-    rod = demo.straight_rod(10.0, 16, turns=2.0)
-    rod.enable_contact(radius=0.01, gamma_T=gamma_T)
-    S = LoadStepper(rod, SolverOptions(dynamics=True))
-    dyn = PseudoDynamics(S, lambda t: t, np.array([0.0, 1.0]))
-    s = rod.mesh.s_nodes
-    R = np.array([expm(np.array([2 * np.pi * 2.0 * si / 10.0, 0.0, 0.0])) @ R0
-                  for si, R0 in zip(s, rod.R0)])
+    rod, S, dyn, R = _twisted_saddle(0.01, gamma_T)
     assert morse_index(S.problem, rod.r0, R, 1.0) > 0
     assert dyn.unstable_at(rod.r0, R, 1.0)
     assert not in_contact(S.problem, rod.r0, R, 1.0)
@@ -267,18 +275,9 @@ def test_a_saddle_the_flow_comes_back_to_from_a_capped_push_is_kept(radius):
     (radius 1), and a larger push would move no farther.  A state at rest
     closer to the saddle than the push put it counts as having come back
     (then the saddle is held, not left) only after such a capped push; a
-    smaller push is doubled instead, and a state farther away has left."""
-    from skfem_rod.dynamics import PseudoDynamics
-    from skfem_rod.options import SolverOptions
-    from skfem_rod.rotations import expm
-    from skfem_rod.solver import LoadStepper
-    rod = demo.straight_rod(10.0, 16, turns=2.0)
-    rod.enable_contact(radius=radius)
-    S = LoadStepper(rod, SolverOptions(dynamics=True))
-    dyn = PseudoDynamics(S, lambda t: t, np.array([0.0, 1.0]))
-    s = rod.mesh.s_nodes
-    R = np.array([expm(np.array([2 * np.pi * 2.0 * si / 10.0, 0.0, 0.0])) @ R0
-                  for si, R0 in zip(s, rod.R0)])
+    smaller push is doubled instead, and a state farther away has left.
+    Held or not, this saddle has no contact force: it stays a saddle."""
+    rod, S, dyn, R = _twisted_saddle(radius)
     saddle = rod.r0
     assert not dyn.came_back(saddle)                     # no push yet
     r1, _ = dyn.push(saddle, R, 1.0)
@@ -290,3 +289,6 @@ def test_a_saddle_the_flow_comes_back_to_from_a_capped_push_is_kept(radius):
         assert not dyn.push_capped and moved == pytest.approx(0.5 * radius)
     assert dyn.came_back(saddle + 0.5 * (r1 - saddle)) == dyn.push_capped
     assert not dyn.came_back(saddle + 2.0 * (r1 - saddle))
+    # held: kept only where contact holds it; this saddle has no contact force
+    dyn.held = True
+    assert dyn.unstable_at(saddle, R, 1.0)

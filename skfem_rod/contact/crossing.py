@@ -841,6 +841,13 @@ def _collect(mesh, r, p):
                                      p["probe_dp"]))
 
 
+def _outer(a, c):
+    """Per pair, the outer product of ``a (m, k)`` and ``c (m, 3)``
+    flattened to ``(m, 3 k)``: a coefficient row on ``k`` nodes times a
+    vector, as a row on their position dofs."""
+    return (a[:, :, None] * c[:, None, :]).reshape(a.shape[0], -1)
+
+
 def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
     """``d(sin^2 beta)/dq`` of the minima at ``(e, u)``, ``(f, v)`` (the
     per-pair arrays of :func:`crossing_work`), ``sin^2 beta = det F_pp /
@@ -851,7 +858,6 @@ def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
     the elements beside its two ``(m, 48)``, and those dofs."""
     m = D.shape[0]
     z = np.zeros((m, 4))
-    kron = lambda a, c: (a[:, :, None] * c[:, None, :]).reshape(m, 24)   # noqa: E731
     X2c, X2u, ax, bx, nx = _second(mesh, r, e, u)
     Y2c, Y2v, ay, by, ny = _second(mesh, r, f, v)
     dot = lambda a, b: _dot(a.T, b.T)                                 # noqa: E731
@@ -859,9 +865,9 @@ def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
     aX2 = np.concatenate([ax, z], axis=1)
     aY2 = np.concatenate([z, ay], axis=1)
     # at fixed parameters
-    dFuu = 2 * kron(aX1, X1) + kron(aD, X2c) + kron(aX2, D)
-    dFvv = 2 * kron(aY1, Y1) - kron(aD, Y2c) - kron(aY2, D)
-    dFuv = -(kron(aX1, Y1) + kron(aY1, X1))
+    dFuu = 2 * _outer(aX1, X1) + _outer(aD, X2c) + _outer(aX2, D)
+    dFvv = 2 * _outer(aY1, Y1) - _outer(aD, Y2c) - _outer(aY2, D)
+    dFuv = -(_outer(aX1, Y1) + _outer(aY1, X1))
     # along the parameters (a held parameter does not move: S's row is 0);
     # |X'|^2 and X'.Y' move with the curves' own X'', D.X'' with the
     # continuous one and its u-derivative
@@ -881,8 +887,8 @@ def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
     # the neighbours enter F_uu (X side) and F_vv (Y side) through D.X''
     # only: d sin^2 = (1 - sin^2) (F_vv dF_uu + F_uu dF_vv) / den
     c = np.where(inside, (1.0 - det / den) / den, 0.0)
-    beside = np.concatenate([(c * Fvv)[:, None] * kron(bx, D), -(c * Fuu)[:, None] * kron(by, D)],
-                            axis=1)
+    beside = np.concatenate([(c * Fvv)[:, None] * _outer(bx, D),
+                             -(c * Fuu)[:, None] * _outer(by, D)], axis=1)
     dofs = (6 * np.concatenate([nx, ny], axis=1)[:, :, None] + np.arange(3)).reshape(m, 48)
     return own, beside, dofs
 
@@ -953,8 +959,7 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
     aD = np.concatenate([Nu, -Nv], axis=1)                        # (m, 8): delta D
     aX1 = np.concatenate([dNu, z], axis=1)                        # delta X'
     aY1 = np.concatenate([z, dNv], axis=1)                        # delta Y'
-    kron = lambda a, c: (a[:, :, None] * c[:, None, :]).reshape(m, 24)   # noqa: E731
-    Fq = kron(aD, D)                                              # dF/dq, F = l^2 / 2
+    Fq = _outer(aD, D)                                            # dF/dq, F = l^2 / 2
     lq = Fq / l[:, None]
     nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
     dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(m, 24)
@@ -962,7 +967,7 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
     force = np.bincount(dofs.ravel(), weights=(-(w * fN)[:, None] * lq).ravel(), minlength=n)
     if not tangent:
         return energy, force, None, w * fN
-    Fpq = np.stack([kron(aX1, D) + kron(aD, X1), -(kron(aY1, D) + kron(aD, Y1))], axis=1)
+    Fpq = np.stack([_outer(aX1, D) + _outer(aD, X1), -(_outer(aY1, D) + _outer(aD, Y1))], axis=1)
     Fpp = np.empty((m, 2, 2))
     Fpp[:, 0, 0], Fpp[:, 1, 1], Fpp[:, 0, 1] = _hessian(D.T, X1.T, X2.T, Y1.T, Y2.T)
     Fpp[:, 1, 0] = Fpp[:, 0, 1]
