@@ -674,30 +674,43 @@ def _curve_at(mesh, r, s):
             s)
 
 
+def _first_lowest(d):
+    """Per column of ``d`` ``(p, k)`` the row a running minimum over the
+    rows ends on, replacing only where strictly lower: the first lowest
+    row (ties: the earlier), row 0 where nothing is lower than it (also a
+    NaN there, which nothing replaces; a NaN in a later row never wins)."""
+    d = d.copy()
+    d[1:][np.isnan(d[1:])] = np.inf
+    return np.argmin(d, axis=0)
+
+
 def _near(mesh, r, x, sx, f, exclusion):
     """The closest point to ``x`` ``(k, 3)`` (at arclength ``sx``) on the
     elements ``f - 1, f, f + 1``, at least ``exclusion`` away in arclength:
-    distance, ``x - y``, element and shape values."""
+    distance, ``x - y``, element and shape values.
+
+    The three elements of every point are projected in one call of
+    :func:`.search.project` (stacked offset-major: ``f``, ``f - 1``, ``f +
+    1``), then per point the first closest of the three is kept (``inf``
+    where none is admissible)."""
     ne, vt = mesh.nodes.shape[0], mesh.vertices
     period = arclength_period(mesh)
-    closed = period is not None
-    best = None
-    for o in (0, -1, 1):
-        fb = f + o
-        ok = np.ones(f.size, bool) if closed else (fb >= 0) & (fb < ne)
-        fb = np.mod(fb, ne) if closed else np.where(ok, fb, f)
-        eta, _ = project(x, r[mesh.nodes[fb]])
-        Nb = shape_functions(eta)[0].T
-        D = x - np.einsum("kI,kIc->kc", Nb, r[mesh.nodes[fb]])
-        ok &= arc_distance(sx, vt[fb] + eta * (vt[fb + 1] - vt[fb]), period) >= exclusion
-        d = np.where(ok, np.sqrt(np.sum(D * D, axis=1)), np.inf)
-        if best is None:
-            best = [d, D, fb, Nb]
-        else:
-            lower = d < best[0]
-            best = [np.where(lower, d, best[0]), np.where(lower[:, None], D, best[1]),
-                    np.where(lower, fb, best[2]), np.where(lower[:, None], Nb, best[3])]
-    return best
+    k = f.size
+    fb = (f + np.array([0, -1, 1])[:, None]).ravel()         # (3 k,) offset-major
+    if period is None:
+        ok = (fb >= 0) & (fb < ne)
+        fb = np.where(ok, fb, np.tile(f, 3))
+    else:
+        ok = np.ones(fb.size, bool)
+        fb = np.mod(fb, ne)
+    x3, re = np.tile(x, (3, 1)), r[mesh.nodes[fb]]
+    eta, _ = project(x3, re)
+    Nb = shape_functions(eta)[0].T
+    D = x3 - np.einsum("kI,kIc->kc", Nb, re)
+    ok &= arc_distance(np.tile(sx, 3), vt[fb] + eta * (vt[fb + 1] - vt[fb]), period) >= exclusion
+    d = np.where(ok, np.sqrt(np.sum(D * D, axis=1)), np.inf)
+    pick = _first_lowest(d.reshape(3, k)) * k + np.arange(k)
+    return d[pick], D[pick], fb[pick], Nb[pick]
 
 
 def _weigh(mesh, r, mn, radius, threshold, exclusion):
@@ -730,27 +743,39 @@ def _weigh(mesh, r, mn, radius, threshold, exclusion):
     todo = np.flatnonzero(w_beta > 0)
     rise = np.full(m, np.inf)
     dofs, dq, dp = np.zeros((m, 24), np.int64), np.zeros((m, 24)), np.zeros((m, 2))
-    for side in (0, 1):
-        s0, B, h = (mn["s"], f, he) if side == 0 else (mn["s_bar"], e, hf)
-        for sign in (-1.0, 1.0):
-            ep, Np, x, x1, moving, sp_ = _curve_at(mesh, r, s0[todo] + sign * delta[todo])
-            d, D, fb, Nb = _near(mesh, r, x, sp_, B[todo], exclusion)
-            nrm = D / np.where(np.isfinite(d), d, 1.0)[:, None]
-            lower = d - l[todo] < rise[todo]
-            if not lower.any():
-                continue
-            # the probe point X(s* +- delta) rides on the minimum's parameter
-            c = np.where(moving, _dot(nrm.T, x1.T) * h[todo] / (vt[ep + 1] - vt[ep]), 0.0)
-            a = np.concatenate([Np, -Nb], axis=1) if side == 0 else np.concatenate([-Nb, Np], 1)
-            nodes = (np.concatenate([mesh.nodes[ep], mesh.nodes[fb]], axis=1) if side == 0
-                     else np.concatenate([mesh.nodes[fb], mesh.nodes[ep]], axis=1))
-            j = np.flatnonzero(lower)
-            k = todo[j]
-            rise[k] = d[j] - l[k]
-            dq[k] = (a[j, :, None] * nrm[j, None, :]).reshape(j.size, 24)
-            dofs[k] = (6 * nodes[j, :, None] + np.arange(3)).reshape(j.size, 24)
-            dp[k] = 0.0
-            dp[k, side] = c[j]
+    # the four probes of every minimum, stacked probe-major in the order
+    # (side, sign) = (0, -1), (0, +1), (1, -1), (1, +1): side 0 probes the
+    # first strand at s* -+ delta against the second (elements next to f),
+    # side 1 the second at s_bar* -+ delta against the first
+    t = todo.size
+    side = np.repeat([0, 0, 1, 1], t)
+    first = side == 0
+    k4 = np.tile(todo, 4)
+    s0 = np.where(first, mn["s"][k4], mn["s_bar"][k4])
+    B, h = np.where(first, f[k4], e[k4]), np.where(first, he[k4], hf[k4])
+    sign = np.repeat([-1.0, 1.0, -1.0, 1.0], t)
+    ep, Np, x, x1, moving, sp_ = _curve_at(mesh, r, s0 + sign * delta[k4])
+    d, D, fb, Nb = _near(mesh, r, x, sp_, B, exclusion)
+    # per minimum the first lowest probe whose rise is below inf (as a
+    # running minimum over the four in that order: ties keep the earlier)
+    val = (d - l[k4]).reshape(4, t)
+    val = np.where(np.isnan(val), np.inf, val)
+    p = np.argmin(val, axis=0) * t + np.arange(t)          # the lowest probe of each
+    j = p[val.reshape(-1)[p] < np.inf]
+    if j.size:
+        k = k4[j]
+        nrm = D[j] / d[j][:, None]
+        # the probe point X(s* +- delta) rides on the minimum's parameter
+        c = np.where(moving[j], _dot(nrm.T, x1[j].T) * h[j] / (vt[ep[j] + 1] - vt[ep[j]]), 0.0)
+        one = first[j][:, None]
+        a = np.where(one, np.concatenate([Np[j], -Nb[j]], axis=1),
+                     np.concatenate([-Nb[j], Np[j]], axis=1))
+        nodes = np.where(one, np.concatenate([mesh.nodes[ep[j]], mesh.nodes[fb[j]]], axis=1),
+                         np.concatenate([mesh.nodes[fb[j]], mesh.nodes[ep[j]]], axis=1))
+        rise[k] = d[j] - l[k]
+        dq[k] = (a[:, :, None] * nrm[:, None, :]).reshape(j.size, 24)
+        dofs[k] = (6 * nodes[:, :, None] + np.arange(3)).reshape(j.size, 24)
+        dp[k, side[j]] = c
     w_rise, slope = _smoothstep(rise / R)
     mn["weight"] = w_rise * w_beta
     mn["weight_slope"] = w_beta * slope / R
