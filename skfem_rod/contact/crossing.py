@@ -169,7 +169,7 @@ def _newton(C1, C2, u, v, iterations):
     p = np.stack([u, v])                                     # (2, m): u, v
     act = np.arange(u.size)
     for _ in range(iterations):
-        c, pa = C[..., act], p[:, act]
+        c, pa = C.take(act, axis=3), p.take(act, axis=1)
         ua, va = pa
         P, P1, P2 = curve_point(c, pa)                       # (3, 2, k): X and Y
         X1, X2, Y1, Y2 = P1[:, 0], P2[:, 0], P1[:, 1], P2[:, 1]
@@ -221,8 +221,8 @@ def _newton(C1, C2, u, v, iterations):
             if todo.size == 0:
                 break
             step *= 0.5
-            trial = np.clip(pa[:, todo] - step * dp[:, todo], 0.0, 1.0)
-            Pn = _position(c[..., todo], trial)
+            trial = np.clip(pa.take(todo, axis=1) - step * dp.take(todo, axis=1), 0.0, 1.0)
+            Pn = _position(c.take(todo, axis=3), trial)
             Dn = Pn[:, 0] - Pn[:, 1]
             ok = _dot(Dn, Dn) <= f0[todo]
             new[:, todo[ok]] = trial[:, ok]

@@ -169,28 +169,30 @@ def _project(x, C, iterations=12):
     xi = _SAMPLES[np.argmin(np.einsum("tcm,tcm->tm", d, d), axis=0)]
     todo = np.arange(m)
     Ct, xt, xit = C, x, xi.copy()
+    dot = np.add.reduce          # np.sum over the components, without its wrapper
     for _ in range(iterations):
         y, y1, y2 = curve_point(Ct, xit)
         g = y - xt
-        n1 = np.sum(y1 * y1, axis=0)
-        f = np.sum(g * y1, axis=0)
-        fp = n1 + np.sum(g * y2, axis=0)
+        n1 = dot(y1 * y1, axis=0)
+        f = dot(g * y1, axis=0)
+        fp = n1 + dot(g * y2, axis=0)
         # Newton where the distance is locally convex, a gradient step else
         step = np.where(fp > 1e-12 * n1, f / np.where(fp == 0, 1, fp), 0.25 * np.sign(f))
         new = np.clip(xit - step, 0.0, 1.0)
         moved = np.abs(new - xit) > 1e-15
         xi[todo] = new
         if not moved.all():
-            todo, Ct, xt, xit = todo[moved], Ct[:, :, moved], xt[:, moved], new[moved]
+            todo, Ct, xt, xit = (todo[moved], Ct.compress(moved, axis=2),
+                                 xt.compress(moved, axis=1), new[moved])
             if todo.size == 0:
                 break
         else:
             xit = new
     y, y1, _ = curve_point(C, xi)
     g = y - x
-    f = np.abs(np.sum(g * y1, axis=0))
-    interior = (xi > 0.0) & (xi < 1.0) & (f <= 1e-9 * (np.sqrt(np.sum(y1 * y1, axis=0))
-                                                          * np.sqrt(np.sum(g * g, axis=0)) + 1e-300))
+    f = np.abs(dot(g * y1, axis=0))
+    interior = (xi > 0.0) & (xi < 1.0) & (f <= 1e-9 * (np.sqrt(dot(y1 * y1, axis=0))
+                                                          * np.sqrt(dot(g * g, axis=0)) + 1e-300))
     return xi, interior, y
 
 
@@ -493,19 +495,28 @@ def _candidates(q, r_el, r, neighbours=None):
     in a deterministic order, with ``lb``, a lower bound of their distance
     (to the nearest sub-arc capsule, :func:`_capsules`), below ``reach``."""
     p0, p1, dev = _capsules(r_el)                            # sub-arc capsules
+    ne = r_el.shape[0]
 
     def find(margin=0.0):
-        return _broad_phase(q.x, q.s, r_el, q.vertices, q.reach, q.exclusion, q.period,
+        i, j = _broad_phase(q.x, q.s, r_el, q.vertices, q.reach, q.exclusion, q.period,
                             margin=margin)
+        order = np.argsort(i * ne + j, kind="stable")        # deterministic order:
+        return i[order], j[order]                            # by slave, then element
     i, j = find() if neighbours is None else neighbours.pairs(r, q.reach, find)
-    order = np.lexsort((j, i))                               # deterministic order
-    i, j = i[order], j[order]
-    xi_ = q.xT[:, i]
-    lb = np.full(i.size, np.inf)
-    for k in range(p0.shape[1]):
-        dq, _ = _segment_distance(xi_, np.ascontiguousarray(p0[:, k].T)[:, j],
-                                  np.ascontiguousarray(p1[:, k].T)[:, j])
-        np.minimum(lb, dq - dev[j, k], out=lb)
+    key = i * ne + j
+    if not np.all(key[1:] > key[:-1]):                       # (kept pairs come sorted)
+        order = np.argsort(key, kind="stable")
+        i, j = i[order], j[order]
+    # the bound to the nearest sub-arc capsule, the three sub-arcs at once:
+    # chord ends (3, parts, k), the slave points broadcast over the parts
+    # (``take`` on component-major copies: gathers of contiguous rows)
+    parts = p0.shape[1]
+    a = np.ascontiguousarray(p0.transpose(2, 1, 0)).reshape(3 * parts, -1)
+    b = np.ascontiguousarray(p1.transpose(2, 1, 0)).reshape(3 * parts, -1)
+    dq, _ = _segment_distance(q.xT.take(i, axis=1)[:, None], a.take(j, axis=1).reshape(3, parts, -1),
+                              b.take(j, axis=1).reshape(3, parts, -1))
+    lb = np.minimum.reduce(dq - np.ascontiguousarray(dev.T).take(j, axis=1), axis=0,
+                           initial=np.inf)
     keep = lb < q.reach
     return i[keep], j[keep], lb[keep]
 
@@ -516,9 +527,10 @@ def _project_candidates(q, i, j, k):
     dist)``."""
     jk = j[k]
     v = q.vertices
-    xi, interior, y = _project(q.xT[:, i[k]], q.C[:, :, jk])
+    x = q.xT.take(i[k], axis=1)
+    xi, interior, y = _project(x, q.C.take(jk, axis=2))
     s_bar = v[jk] + xi * (v[jk + 1] - v[jk])
-    dvec = (q.xT[:, i[k]] - y).T
+    dvec = (x - y).T
     dist = np.linalg.norm(dvec, axis=1)
     ok = ((arc_distance(s_bar, q.s[i[k]], q.period) >= q.exclusion) & (dist < q.reach)
           & (dist > 0))
