@@ -109,7 +109,8 @@ def local_minima(C1, C2, iterations=40, grid=7, starts=3):
     tg = t[:, None, None]
     P1, P2 = _position(C1, tg), _position(C2, tg)                          # (g, 3, m)
     d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2)                      # (g, g, m)
-    pad = np.pad(d2, ((1, 1), (1, 1), (0, 0)), constant_values=np.inf)
+    pad = np.full((grid + 2, grid + 2, m), np.inf)        # d2 with a border of inf
+    pad[1:-1, 1:-1] = d2
     lowest = np.ones(d2.shape, bool)
     for a in (0, 1, 2):
         for b in (0, 1, 2):
@@ -183,38 +184,45 @@ def _newton(C1, C2, u, v, iterations):
         both = fu & fv & (huu > 0) & (det > 1e-14 * (huu * hvv + 1e-300))
         safe = lambda h, g: np.where(h > 1e-14, g / np.where(h > 1e-14, h, 1.0),   # noqa: E731
                                      0.1 * np.sign(g))
+        # Newton where the quadratic model has a minimum, else a safe step
+        # in each parameter alone (one held on a bound: its step is 0 below)
+        du = np.where(both, (hvv * gu - huv * gv) / np.where(both, det, 1.0), safe(huu, gu))
+        dv = np.where(both, (huu * gv - huv * gu) / np.where(both, det, 1.0), safe(hvv, gv))
         # both free but no minimum of the quadratic model (a saddle or a flat
         # valley: wrapped strands): Newton on the Hessian shifted to positive
         # definite, so the step runs down the valley to where it ends.  The
         # coordinate steps used there before crept along it (updates of
         # 1.5e-3 per iteration after 40 iterations in the knot's braid,
-        # which kept every call at the iteration limit)
+        # which kept every call at the iteration limit).  (Most iterations
+        # have no such pair: the branch is skipped, with the same steps.)
         shift = fu & fv & ~both
-        lmin = 0.5 * (huu + hvv) - np.sqrt(0.25 * (huu - hvv) ** 2 + huv * huv)
-        mu = np.where(shift, np.maximum(0.0, -lmin) + 1e-9 * np.abs(huu + hvv) + 1e-300, 0.0)
-        su, sv = huu + mu, hvv + mu
-        sdet = np.where(shift, su * sv - huv * huv, 1.0)
-        du = np.where(both, (hvv * gu - huv * gv) / np.where(both, det, 1.0),
-                      np.where(shift, (sv * gu - huv * gv) / sdet, safe(huu, gu)))
-        dv = np.where(both, (huu * gv - huv * gu) / np.where(both, det, 1.0),
-                      np.where(shift, (su * gv - huv * gu) / sdet, safe(hvv, gv)))
+        shifted = shift.any()
+        if shifted:
+            lmin = 0.5 * (huu + hvv) - np.sqrt(0.25 * (huu - hvv) ** 2 + huv * huv)
+            mu = np.where(shift, np.maximum(0.0, -lmin) + 1e-9 * np.abs(huu + hvv) + 1e-300, 0.0)
+            su, sv = huu + mu, hvv + mu
+            sdet = np.where(shift, su * sv - huv * huv, 1.0)
+            du = np.where(shift, (sv * gu - huv * gv) / sdet, du)
+            dv = np.where(shift, (su * gv - huv * gu) / sdet, dv)
         du, dv = np.where(fu, du, 0.0), np.where(fv, dv, 0.0)
-        # the shifted step can be as long as the valley: at most a quarter
-        # element, so that its halvings below search along it (clipped to
-        # the element, a longer step turns aside and no halving descends)
-        big = np.maximum(np.where(shift, np.maximum(np.abs(du), np.abs(dv)) / 0.25, 1.0), 1.0)
-        dp = np.stack([du / big, dv / big])                  # (2, k)
+        if shifted:
+            # the shifted step can be as long as the valley: at most a quarter
+            # element, so that its halvings below search along it (clipped to
+            # the element, a longer step turns aside and no halving descends)
+            big = np.maximum(np.where(shift, np.maximum(np.abs(du), np.abs(dv)) / 0.25, 1.0),
+                             1.0)
+            du, dv = du / big, dv / big
+        dp = np.stack([du, dv])                              # (2, k)
         # safeguard: backtrack until the distance does not increase (stay
         # put if it always does: a minimum to round-off); the first, full
         # step on every pair, the halvings on those it did not descend for
         DD = _dot(D, D)
         f0 = DD * (1 + 1e-15) + 1e-300
-        new = pa.copy()
         trial = np.clip(pa - dp, 0.0, 1.0)
         Pn = _position(c, trial)
         Dn = Pn[:, 0] - Pn[:, 1]
         ok = _dot(Dn, Dn) <= f0
-        new[:, ok] = trial[:, ok]
+        new = np.where(ok, trial, pa)
         todo = np.flatnonzero(~ok)
         step = 1.0
         for _ in range(11):
@@ -230,7 +238,7 @@ def _newton(C1, C2, u, v, iterations):
         # stationary (the projected gradient at round-off) or stuck
         tol = 1e-13 * np.sqrt(DD * (_dot(X1, X1) + _dot(Y1, Y1))) + 1e-300
         stationary = (np.abs(np.where(fu, gu, 0.0)) <= tol) & (np.abs(np.where(fv, gv, 0.0)) <= tol)
-        moved = np.any(np.abs(new - pa) >= 1e-12, axis=0) & ~stationary
+        moved = ((np.abs(new[0] - ua) >= 1e-12) | (np.abs(new[1] - va) >= 1e-12)) & ~stationary
         p[:, act] = new
         act = act[moved]
         if act.size == 0:
@@ -357,7 +365,7 @@ class WeightSlope:
 def _solve(mesh, e, f, r_el, every=False):
     """Closest points of the element pairs ``(e, f)``; with ``every``, each
     distinct local minimum (:func:`local_minima`; ``e``, ``f`` repeated)."""
-    C = monomial_coefficients(r_el).transpose(1, 2, 0)                 # (4, 3, ne)
+    C = np.ascontiguousarray(monomial_coefficients(r_el).transpose(1, 2, 0))   # (4, 3, ne)
     if every:
         k, u, v, dist = local_minima(C[:, :, e], C[:, :, f])
         e, f = e[k], f[k]
