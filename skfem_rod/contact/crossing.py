@@ -312,7 +312,8 @@ def _element_pairs(mesh, r, reach, exclusion):
     if period is not None:
         inside &= (v[e + 1] - v[e]) + (v[f + 1] - v[f]) + exclusion < 0.5 * period
     e, f = e[~inside], f[~inside]
-    lb = _segment_pairs(P0[:, e], P1[:, e], P0[:, f], P1[:, f]) - dev[e] - dev[f]
+    lb = (_segment_pairs(P0.take(e, axis=1), P1.take(e, axis=1), P0.take(f, axis=1),
+                         P1.take(f, axis=1)) - dev[e] - dev[f])
     keep = lb < reach
     return e[keep], f[keep], lb[keep], r_el
 
@@ -496,12 +497,16 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     period = arclength_period(mesh)
     ok = (arc_distance(s, s_bar, period) >= exclusion) & (dist > 0) & (dist < reach)
     e, f, u, v, s, s_bar, dist = (a[ok] for a in (e, f, u, v, s, s_bar, dist))
-    X, X1, X2 = curve_point(C[:, :, e], u)
-    Y, Y1, Y2 = curve_point(C[:, :, f], v)
+    # both strands in one call each (elementwise: the same values as apart)
+    n = e.size
+    ef, uv = np.concatenate([e, f]), np.concatenate([u, v])
+    P, P1, P2 = curve_point(C.take(ef, axis=2), uv)
+    X, X1, X2, Y, Y1, Y2 = P[:, :n], P1[:, :n], P2[:, :n], P[:, n:], P1[:, n:], P2[:, n:]
     D = X - Y
     ne = mesh.nodes.shape[0]
     closed = period is not None
-    ok = _node_minimum(C, e, u, D, ne, closed) & _node_minimum(C, f, v, -D, ne, closed)
+    ok = _node_minimum(C, ef, uv, np.concatenate([D, -D], axis=1), ne, closed)
+    ok = ok[:n] & ok[n:]
     fu, fv = (u > 0) & (u < 1), (v > 0) & (v < 1)
     n1, n2 = _dot(X1, X1), _dot(Y1, Y1)
     huu, hvv, huv = _hessian(D, X1, X2, Y1, Y2)
@@ -530,7 +535,8 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     k = np.flatnonzero(ok)
     k = k[_one_per_crossing(s[k], s_bar[k], dist[k],
                             TWIN * float(np.mean(np.diff(mesh.vertices))), held)]
-    X2c, Y2c = _second(mesh, r, e[k], u[k])[0].T, _second(mesh, r, f[k], v[k])[0].T
+    X2c = _second(mesh, r, np.concatenate([e[k], f[k]]), np.concatenate([u[k], v[k]]))[0].T
+    X2c, Y2c = X2c[:, :k.size], X2c[:, k.size:]
     huu, hvv, huv = _hessian(D[:, k], X1[:, k], X2c, Y1[:, k], Y2c)
     sin2 = np.clip((huu * hvv - huv * huv) / np.maximum(np.abs(huu * hvv), 1e-300), 0.0, 1.0)
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(n1 * n2)
