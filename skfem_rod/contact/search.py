@@ -525,7 +525,8 @@ def _candidates(q, r_el, r, neighbours=None):
     parts = p0.shape[1]
     a = np.ascontiguousarray(p0.transpose(2, 1, 0)).reshape(3 * parts, -1)
     b = np.ascontiguousarray(p1.transpose(2, 1, 0)).reshape(3 * parts, -1)
-    dq, _ = _segment_distance(q.xT.take(i, axis=1)[:, None], a.take(j, axis=1).reshape(3, parts, -1),
+    dq, _ = _segment_distance(q.xT.take(i, axis=1)[:, None],
+                              a.take(j, axis=1).reshape(3, parts, -1),
                               b.take(j, axis=1).reshape(3, parts, -1))
     lb = np.minimum.reduce(dq - np.ascontiguousarray(dev.T).take(j, axis=1), axis=0,
                            initial=np.inf)
