@@ -105,8 +105,8 @@ def augmented_lagrangian(problem, solve_pass):
             old = carry_crossing(m, ce.crossing)
             # the force each pair applied: a fading pair gives its
             # multiplier up with its weight (docs/crossing-contact.md, 4)
-            m.crossing_key = ce.crossing.key
-            m.crossing = ce.crossing.weight * uzawa_update(dc, old, c.crossing_penalty)
+            m.rekey_crossing(ce.crossing.key,
+                             ce.crossing.weight * uzawa_update(dc, old, c.crossing_penalty))
         uzawa += 1
 
 

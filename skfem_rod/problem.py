@@ -85,6 +85,19 @@ class Multipliers:
     #: crossing pairs (option ``crossing``): element-pair keys and multipliers
     crossing_key: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     crossing: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: ``(k, 2)`` the places ``(s, s_bar)`` where the held crossing pairs
+    #: followed their minima at the last evaluation (None: their keys'
+    #: places).  Part of the saved state: a restored copy follows from the
+    #: places of the state it was saved at.  Kept beside the multipliers
+    #: before, and reset to the keys' places by every restore, the places
+    #: made a rejected damped step change the residual at the accepted
+    #: state it fell back to: a minimum that had moved more than its carry
+    #: radius since the last multiplier update was no longer followed, its
+    #: force fell from 31.5 to 0.003 (the plectoneme's winding at 1.95
+    #: turns with ``contact_solve="newton"``, where no Uzawa update re-keys
+    #: the pairs) and the next damped step started from a residual of 36
+    #: that no time step could take: dt halved to 1e-8
+    crossing_places: np.ndarray = None
 
     @classmethod
     def zeros(cls, n, friction):
@@ -96,7 +109,32 @@ class Multipliers:
         c = lambda a: None if a is None else a.copy()        # noqa: E731
         return replace(self, normal=c(self.normal), penalty_scale=c(self.penalty_scale),
                        tangential=c(self.tangential), rotational=c(self.rotational),
-                       crossing_key=c(self.crossing_key), crossing=c(self.crossing))
+                       crossing_key=c(self.crossing_key), crossing=c(self.crossing),
+                       crossing_places=c(self.crossing_places))
+
+    def held_crossing(self):
+        """The ``held`` argument of
+        :func:`skfem_rod.contact.crossing.crossing_pairs`: keys, multipliers
+        and the places to follow the held pairs' minima from."""
+        if self.crossing_places is None and self.crossing_key.ndim == 2 \
+                and self.crossing_key.shape[0]:
+            self.crossing_places = np.asarray(self.crossing_key, float)[:, :2].copy()
+        return self.crossing_key, self.crossing, self.crossing_places
+
+    def follow_crossing(self, pairs):
+        """Record where the held pairs of ``pairs`` (a
+        :class:`~skfem_rod.contact.crossing.CrossingPairs`) act or follow
+        their minima: the next evaluation looks for each from there."""
+        if self.crossing_places is None or pairs.size == 0:
+            return
+        idx = pairs.key[:, 4].astype(np.int64)
+        ok = idx >= 0
+        self.crossing_places[idx[ok]] = pairs.key[ok, :2]
+
+    def rekey_crossing(self, key, lam):
+        """New crossing keys and multipliers (a multiplier update): the held
+        pairs follow from the new keys' places."""
+        self.crossing_key, self.crossing, self.crossing_places = key, lam, None
 
     def nominal_penalty(self):
         """The same multipliers at the nominal penalties (factors 1)."""
@@ -168,7 +206,6 @@ class Problem:
         self.multipliers = None
         self.reference = None
         self.contact_curve = None
-        self.crossing_track = None
         if self.contact is not None:
             from .contact.assembly import ContactPatterns
             from .contact.curve import ContactCurve
@@ -196,11 +233,6 @@ class Problem:
             #: where the next step's loop starts (option penalty_memory;
             #: None: at the nominal penalty)
             self.penalty_start = None
-            if self.contact.crossing:
-                from .contact.crossing import CrossingTrack
-                #: where the held crossing pairs followed their minima at the
-                #: last evaluation (contact/crossing.py, CrossingTrack)
-                self.crossing_track = CrossingTrack()
             if self.friction:
                 self.reference = (rod.r0.copy(), rod.R0.copy())
 
@@ -428,8 +460,8 @@ class Problem:
             t3 = time.perf_counter()
             cp = crossing_pairs(mesh, r, c.radius, c.exclusion,
                                 threshold=c.crossing_threshold(),
-                                held=self.crossing_track.held(m.crossing_key, m.crossing))
-            self.crossing_track.record(cp)
+                                held=m.held_crossing())
+            m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
                                             c.radius, tangent, fade=not frozen)

@@ -572,13 +572,17 @@ def test_twin_minima_at_a_kink_are_one_crossing():
     assert s0.e[0] == 1 and cp.size == 1 and cp.e[0] == 0
 
 
-def test_a_held_pair_follows_its_minimum_from_the_tracked_place():
+def test_a_held_pair_follows_its_minimum_from_the_followed_place():
     """A minimum that moved beyond its key's carry radius within a solve
-    is still followed from the place tracked at the last evaluation
-    (:class:`CrossingTrack`): its pair is the held one (the key's index);
-    from the key alone it is a new pair, which :func:`carry` feeds by place
-    (the old key lies within the new pair's carry radius)."""
-    from skfem_rod.contact.crossing import CrossingTrack
+    is still followed from the place recorded at the last evaluation
+    (``Multipliers.crossing_places``): its pair is the held one (the key's
+    index); from the key alone it is a new pair, which :func:`carry` feeds
+    by place (the old key lies within the new pair's carry radius).  The
+    places are part of the saved multipliers: a copy (the save before a
+    step that may be rejected) follows from the places of the state it was
+    taken at, not from the keys'; new keys (a multiplier update) follow
+    from their own places."""
+    from skfem_rod.problem import Multipliers
     mesh, r = two_strands(np.pi / 3, 1.5 * EPS)
     md = min_distance(mesh, r, EPS, np.pi * EPS)
     beta = crossing_pairs(mesh, r, EPS, np.pi * EPS).beta[0]
@@ -587,15 +591,22 @@ def test_a_held_pair_follows_its_minimum_from_the_tracked_place():
     apart = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=(key, lam))
     assert apart.size == 1 and apart.key[0, 4] == -1
     assert carry(key, lam, apart.key)[0] == 0.4
-    track = CrossingTrack()
-    held = track.held(key, lam)
-    track.places[:] = [md.s - 0.05 * H, md.s_bar + 0.05 * H]     # the last evaluation's place
-    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=held)
+    m = Multipliers.zeros(3, False)
+    m.rekey_crossing(key, lam)
+    assert m.held_crossing()[2][0] == pytest.approx(key[0, :2])   # from the key's place
+    m.crossing_places[:] = [md.s - 0.05 * H, md.s_bar + 0.05 * H]  # the last evaluation's place
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=m.held_crossing())
     assert cp.size == 1 and cp.key[0, 4] == 0 and carry(key, lam, cp.key)[0] == 0.4
-    track.record(cp)
-    assert track.places[0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
-    assert track.held(key, lam)[2] is track.places                # same keys: kept
-    assert track.held(key.copy(), lam)[2][0, 0] == key[0, 0]     # new keys: reset
+    m.follow_crossing(cp)
+    assert m.crossing_places[0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
+    saved = m.copy()
+    m.follow_crossing(apart)                  # no held pair in it: places kept
+    assert m.crossing_places[0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
+    assert saved.held_crossing()[2][0] == pytest.approx([md.s, md.s_bar], abs=1e-9)
+    again = crossing_pairs(mesh, r, EPS, np.pi * EPS, held=saved.held_crossing())
+    assert again.key[0, 4] == 0 and carry(key, lam, again.key)[0] == 0.4
+    m.rekey_crossing(key.copy(), lam)                              # new keys
+    assert m.held_crossing()[2][0, 0] == key[0, 0]
 
 
 def _double_helix(n=12, a=1.05, pitch=12.0, link=3):
