@@ -111,11 +111,14 @@ def local_minima(C1, C2, iterations=40, grid=7, starts=3):
     d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2)                      # (g, g, m)
     pad = np.full((grid + 2, grid + 2, m), np.inf)        # d2 with a border of inf
     pad[1:-1, 1:-1] = d2
-    lowest = np.ones(d2.shape, bool)
+    # a grid point is a local minimum where it is not above any of its 8
+    # neighbours: not above their minimum (a NaN among them: no minimum)
+    around = np.full(d2.shape, np.inf)
     for a in (0, 1, 2):
         for b in (0, 1, 2):
             if (a, b) != (1, 1):
-                lowest &= d2 <= pad[a:a + grid, b:b + grid]
+                np.minimum(around, pad[a:a + grid, b:b + grid], out=around)
+    lowest = d2 <= around
     d2 = d2.reshape(grid * grid, m)
     rank = d2 + ~lowest.reshape(grid * grid, m) * (d2.max(axis=0) + 1.0)    # local minima first
     k = _lowest_rows(rank, starts).ravel()                                  # (starts * m,)
