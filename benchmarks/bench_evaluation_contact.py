@@ -11,6 +11,9 @@ is then stopped.  Per state the script times
 
 * ``evaluate``: ``Problem.evaluate(r, R, lam)`` (residual and tangent,
   contact included);
+* ``contact``: its contact part alone (``Problem._contact``: search,
+  Gauss-point and crossing pairs' work, on the contact curve and pulled
+  back to the rod's dofs);
 * ``search``: the Gauss-point contact search alone (with the problem's
   master preference and neighbour list);
 * ``crossing_pairs``: the crossing pairs alone (with the held pairs);
@@ -113,10 +116,12 @@ def main(argv=None):
     states = capture(a.states, a.every)
     print(f"{skfem_rod.__file__}: {len(states)} states captured in "
           f"{time.perf_counter() - t0:.1f} s", flush=True)
-    out = {"evaluate": [], "search": [], "crossing_pairs": []}
+    out = {"evaluate": [], "contact": [], "search": [], "crossing_pairs": []}
     for p0, r, R, lam in states:
         p = copy.deepcopy(p0)
         out["evaluate"].append(median_ms(lambda: p.evaluate(r, R, lam), a.repeat))
+        p = copy.deepcopy(p0)
+        out["contact"].append(median_ms(lambda: p._contact(r, R, True), a.repeat))
         p = copy.deepcopy(p0)
         s_args, s_kw, c_args, c_kw = contact_arguments(p, r)
         out["search"].append(median_ms(lambda: search(*s_args, **s_kw), a.repeat))
