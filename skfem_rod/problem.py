@@ -728,6 +728,10 @@ class Report:
     min_distance_at: tuple = None
     uzawa_converged: bool = True
     uzawa_note: str = ""
+    #: a later Uzawa pass failed and the generalized Newton solved the step
+    #: from the last converged pass (:func:`skfem_rod.augmented.step`): the
+    #: failed pass's reason, else ""
+    rescued: str = ""
     friction_moved: float = 0.0
     friction_misfit: float = 0.0     # friction_assembly.coulomb_misfit of the last pass
     # generalized Newton (skfem_rod.nonsmooth): |C| per iteration and the

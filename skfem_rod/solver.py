@@ -239,6 +239,9 @@ class LoadStepper:
         self.result.append(lam, r, R, rep, time=t)
         if rep.uzawa_note:
             self.result.log.append(f"step to lam={lam:.6g}: {rep.uzawa_note}")
+        if rep.rescued:
+            self.result.log.append(f"step to lam={lam:.6g}: a Uzawa pass failed ({rep.rescued}); "
+                                   "the generalized Newton solved it from the last converged pass")
         if rep.relaxed_residual is not None:
             self.result.log.append(
                 f"step to lam={lam:.6g}: the gradient flow's state, Newton's polish did not "

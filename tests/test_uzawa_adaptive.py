@@ -195,3 +195,44 @@ def test_a_first_pass_failing_at_the_carried_penalty_runs_again_at_the_nominal_o
     assert not rep.converged and rep.reason == "too stiff"
     assert np.array_equal(problem.multipliers.penalty_scale, saved.penalty_scale)
     assert np.array_equal(problem.multipliers.normal, saved.normal)
+
+
+def test_a_failing_later_pass_is_solved_by_the_generalized_newton(monkeypatch):
+    """A Uzawa pass after the first that fails (here every one, on purpose:
+    in the plectoneme such a pass diverged at 256 times the nominal
+    penalty) is solved again by the generalized Newton from the last
+    converged pass (``augmented.step``): the steps converge, the log says
+    which, every contact tolerance holds at every step, and the states are
+    those plain Uzawa converges to, within the tolerances."""
+    from skfem_rod import newton as newton_mod
+    from skfem_rod.problem import failed
+    eps = SEC.radius
+
+    def pressed():
+        rod = Rod(hairpin(eps, 4 * eps), SEC, 30)
+        rod.clamp("start").add_force("end", [0, -0.6, 0])
+        rod.enable_contact(penalty=1e2 * eps**4 / SEC.EI1)
+        return rod
+
+    rod = pressed()
+    plain = rod.solve(n_steps=4)
+    assert plain.converged, plain.message
+    assert any(st.contact.uzawa > 0 for st in plain.steps)     # later passes exist
+    real = newton_mod.newton
+
+    def later_uzawa_passes_fail(problem, r, R, lam, opts, prescribed=None, border=None):
+        if prescribed is None and border is None and opts.contact_solve == "uzawa":
+            return failed(r, R, lam, [], 0, "made to fail")
+        return real(problem, r, R, lam, opts, prescribed=prescribed, border=border)
+    monkeypatch.setattr(newton_mod, "newton", later_uzawa_passes_fail)
+    rod2 = pressed()
+    res = rod2.solve(n_steps=4)
+    assert res.converged, res.message
+    rescued = [m for m in res.log if "the generalized Newton solved it" in m]
+    assert rescued and all("made to fail" in m for m in rescued)
+    tol = rod2.contact.tolerance * eps
+    for a, b in zip(plain.steps, res.steps):
+        c = b.contact
+        assert c.penetration <= tol and np.all(np.abs(c.gap) <= tol)
+        assert np.all(c.force >= 0)
+        assert np.abs(a.r - b.r).max() <= 5 * tol
