@@ -667,12 +667,12 @@ def crossing_pairs(mesh, r, radius, exclusion, reach=None, threshold=PairThresho
     ``held = (key, multipliers, track)``: ``track`` (optional, ``(k, 2)``)
     the places ``(s, s_bar)`` from which the held pairs look for their
     minimum, the places they followed at the last evaluation
-    (:class:`CrossingTrack`; default their keys' places): a minimum that
-    moves by about an element within a solve left the carry radius of its
-    key, and its multiplier switched on and off from one Newton iterate to
-    the next (measured in the plectoneme's damped steps: the minimum 0.0092
-    <-> 0.0099 from a key with carry radius 0.01, the residual 0.61 <->
-    0.76).
+    (``Multipliers.crossing_places`` of :mod:`skfem_rod.problem`; default
+    their keys' places): a minimum that moves by about an element within a
+    solve left the carry radius of its key, and its multiplier switched on
+    and off from one Newton iterate to the next (measured in the
+    plectoneme's damped steps: the minimum 0.0092 <-> 0.0099 from a key
+    with carry radius 0.01, the residual 0.61 <-> 0.76).
 
     Examples
     --------
@@ -870,35 +870,6 @@ def _describe(mesh, mn):
     mn["mkey"] = np.c_[mn["s"], mn["s_bar"], np.maximum(vt[e + 1] - vt[e], vt[f + 1] - vt[f]),
                        beta]
     mn["length"], mn["beta"] = mn["distance"], beta
-
-
-class CrossingTrack:
-    """The places the held crossing pairs followed at the last evaluation,
-    for the keys of one multiplier update (:func:`crossing_pairs`'s
-    ``track``); reset when the keys change (another key array: a multiplier
-    update, or multipliers restored from a copy)."""
-
-    def __init__(self):
-        self.key, self.places = None, None
-
-    def held(self, key, lam):
-        """The ``held`` argument of :func:`crossing_pairs` for keys ``key``
-        and multipliers ``lam``, with the tracked places."""
-        if key is not self.key:
-            self.key = key
-            k = np.asarray(key, float)
-            self.places = k[:, :2].copy() if k.ndim == 2 and k.shape[0] else None
-        return key, lam, self.places
-
-    def record(self, pairs):
-        """Track the places the held pairs of ``pairs`` (a
-        :class:`CrossingPairs`) act at or follow."""
-        if self.places is None or pairs.size == 0:
-            return
-        idx = pairs.key[:, 4].astype(np.int64)
-        ok = idx >= 0
-        self.places[idx[ok]] = pairs.key[ok, :2]
-
 
 def _follow(mkey, old):
     """Per held pair (key ``old``) the minimum it follows (index into
