@@ -266,8 +266,8 @@ def test_factor_derives_the_pattern_work_once_per_pattern(monkeypatch, contact):
         # one machine and to 3e-9 on another; backward errors measured: 4e-17
         # and below)
         Kf = K.toarray()[np.ix_(f, f)]
-        backward = np.linalg.norm(Kf @ x[f] - rhs[f], np.inf) / (
-            np.linalg.norm(Kf, np.inf) * np.linalg.norm(x[f], np.inf) + np.linalg.norm(rhs[f], np.inf))
+        norm = lambda a: np.linalg.norm(a, np.inf)                   # noqa: E731
+        backward = norm(Kf @ x[f] - rhs[f]) / (norm(Kf) * norm(x[f]) + norm(rhs[f]))
         assert backward < 1e-14, backward
         assert not np.any(x[held])
         K.data[:] = K.data * (1.0 + 1e-3 * rng.standard_normal(K.nnz))   # new values

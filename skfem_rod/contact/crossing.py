@@ -60,8 +60,8 @@ from scipy.spatial import cKDTree
 
 from ..element import shape_functions
 from .law import gap, normal_force, potential
-from .search import (monomial_coefficients, curve_point, arclength_period, arc_distance,
-                     project)
+from .search import (monomial_coefficients, curve_point, curve_position, arclength_period,
+                     arc_distance, project)
 
 
 #: minima closer than this fraction of an element in both arclengths are
@@ -107,7 +107,7 @@ def local_minima(C1, C2, iterations=40, grid=7, starts=3):
     m = C1.shape[2]
     t = np.linspace(0.0, 1.0, grid)
     tg = t[:, None, None]
-    P1, P2 = _position(C1, tg), _position(C2, tg)                          # (g, 3, m)
+    P1, P2 = curve_position(C1, tg), curve_position(C2, tg)                # (g, 3, m)
     d2 = np.sum((P1[:, None] - P2[None]) ** 2, axis=2)                      # (g, g, m)
     pad = np.full((grid + 2, grid + 2, m), np.inf)        # d2 with a border of inf
     pad[1:-1, 1:-1] = d2
@@ -153,13 +153,6 @@ def _lowest_rows(rank, n):
         out[i] = np.argmin(r, axis=1)                        # the first lowest
         r[cols, out[i]] = np.inf
     return out
-
-
-def _position(C, xi):
-    """The position alone of :func:`.search.curve_point` (the same Horner
-    scheme, so the same round-off): ``C`` ``(4, 3, ...)``, ``xi``
-    broadcasting against ``C[0]``."""
-    return ((C[3] * xi + C[2]) * xi + C[1]) * xi + C[0]
 
 
 def _newton(C1, C2, u, v, iterations):
@@ -222,7 +215,7 @@ def _newton(C1, C2, u, v, iterations):
         DD = _dot(D, D)
         f0 = DD * (1 + 1e-15) + 1e-300
         trial = np.clip(pa - dp, 0.0, 1.0)
-        Pn = _position(c, trial)
+        Pn = curve_position(c, trial)
         Dn = Pn[:, 0] - Pn[:, 1]
         ok = _dot(Dn, Dn) <= f0
         new = np.where(ok, trial, pa)
@@ -233,7 +226,7 @@ def _newton(C1, C2, u, v, iterations):
                 break
             step *= 0.5
             trial = np.clip(pa.take(todo, axis=1) - step * dp.take(todo, axis=1), 0.0, 1.0)
-            Pn = _position(c.take(todo, axis=3), trial)
+            Pn = curve_position(c.take(todo, axis=3), trial)
             Dn = Pn[:, 0] - Pn[:, 1]
             ok = _dot(Dn, Dn) <= f0[todo]
             new[:, todo[ok]] = trial[:, ok]
@@ -246,7 +239,7 @@ def _newton(C1, C2, u, v, iterations):
         act = act[moved]
         if act.size == 0:
             break
-    P = _position(C, p)
+    P = curve_position(C, p)
     D = P[:, 0] - P[:, 1]
     return p[0], p[1], np.sqrt(_dot(D, D))
 

@@ -145,12 +145,19 @@ def monomial_coefficients(r_el):
     return _MONO @ r_el
 
 
+def curve_position(C, xi):
+    """The positions alone of :func:`curve_point` (the same Horner scheme,
+    the same round-off): ``C`` ``(4, 3, ...)``, ``xi`` broadcasting
+    against ``C[0]``."""
+    return ((C[3] * xi + C[2]) * xi + C[1]) * xi + C[0]
+
+
 def curve_point(C, xi):
     """Positions and first/second xi-derivatives ``(3, m)`` of element
     curves given by monomial coefficients ``C`` ``(4, 3, m)`` (component
     major: every operation runs on contiguous rows)."""
     c1, c2, c3 = C[1], C[2], C[3]
-    y = ((c3 * xi + c2) * xi + c1) * xi + C[0]
+    y = curve_position(C, xi)
     y1 = (3.0 * c3 * xi + 2.0 * c2) * xi + c1
     y2 = 6.0 * c3 * xi + 2.0 * c2
     return y, y1, y2
