@@ -115,7 +115,9 @@ class Multipliers:
     def held_crossing(self):
         """The ``held`` argument of
         :func:`skfem_rod.contact.crossing.crossing_pairs`: keys, multipliers
-        and the places to follow the held pairs' minima from."""
+        and the places to follow the held pairs' minima from (set to the
+        keys' places on the first call after new keys, so that
+        :meth:`follow_crossing` can record into them)."""
         if self.crossing_places is None and self.crossing_key.ndim == 2 \
                 and self.crossing_key.shape[0]:
             self.crossing_places = np.asarray(self.crossing_key, float)[:, :2].copy()
