@@ -184,7 +184,7 @@ def _project(x, C, iterations=12):
     Et, xt, xit = E, x, xi.copy()
     dot = np.add.reduce          # np.sum over the components, without its wrapper
     for _ in range(iterations):
-        y = ((Et[3] * xit + Et[2]) * xit + Et[1]) * xit + Et[0]
+        y = curve_position(Et, xit)
         y1 = (Et[4] * xit + Et[5]) * xit + Et[1]
         y2 = Et[6] * xit + Et[5]
         g = y - xt
