@@ -30,14 +30,23 @@ import numpy as np
 
 from .contact.friction_assembly import coulomb_misfit, multiplier_updates
 from .contact import OVERLAP_FAIL
-from .contact.law import gap, uzawa_update
+from .contact.law import uzawa_update
 
 #: the adaptive penalty raises the penalty at a point whose violation did
 #: not drop below this fraction of the last one (Bertsekas' 0.25)
 PENALTY_DROP = 0.25
 
 
-def augmented_lagrangian(problem, solve_pass, rescue=None):
+#: offset rounds per loop (:func:`adjust_offsets`): passes at raised gap
+#: offsets after the contact tolerances hold at the slave points while the
+#: centrelines overlap by more than the tolerance between them
+OFFSET_ROUNDS = 5
+#: a pass that fails after an adjustment is tried again from the last
+#: converged pass with half the change, at most this many times
+OFFSET_HALVINGS = 2
+
+
+def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
     """Uzawa updates of the contact (and friction) multipliers of
     ``problem`` around ``solve_pass``.
 
@@ -51,6 +60,14 @@ def augmented_lagrangian(problem, solve_pass, rescue=None):
         from the last converged pass when a later pass fails (the
         multipliers as the failed pass left them, the penalty back at the
         nominal one); the loop goes on from its state.  Once per loop.
+    strict : the state is an equilibrium to record (load steps, the
+        polish, the gradient flow): where the contact tolerances hold at
+        the slave points but the centrelines overlap by more than the
+        tolerance between them, the gap offsets are raised
+        (:func:`adjust_offsets`, at most :data:`OFFSET_ROUNDS` times) and the
+        loop goes on; a true overlap beyond the tolerance at the end fails
+        the step.  False (the damped steps of the pseudo-dynamics, states
+        on the way): only an overlap beyond :data:`OVERLAP_FAIL` fails.
 
     Returns
     -------
@@ -68,6 +85,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None):
     last = np.full(problem.multipliers.normal.size, np.inf)   # last violation in contact
     last_moved = np.inf
     previous = None
+    rounds, lift, fallback, halvings, stood_open = 0, None, None, 0, 0.0
     while True:
         r, R, lam, rep = solve_pass(previous)
         total += rep.iterations
@@ -88,6 +106,29 @@ def augmented_lagrangian(problem, solve_pass, rescue=None):
             rescue = None
             if rep.converged:
                 rep.rescued = why
+        if not rep.converged and fallback is not None and halvings < OFFSET_HALVINGS:
+            # a pass after the offsets were adjusted failed: again from the
+            # last pass that held the contact tolerances, half the change
+            halvings += 1
+            kept, target = fallback[4], problem.multipliers
+            problem.multipliers = kept.copy()
+            problem.multipliers.offset = 0.5 * (kept.offset + target.offset)
+            if kept.crossing_offset.size == target.crossing_offset.size:
+                problem.multipliers.crossing_offset = 0.5 * (kept.crossing_offset
+                                                             + target.crossing_offset)
+            continue
+        if not rep.converged and fallback is not None:
+            # still failing: the last pass that held the contact tolerances
+            # is the answer if its true distance holds too (finish judges
+            # it); where a point stood open under force, the report says so
+            r, R, lam, rep, problem.multipliers, pen, opened = fallback
+            rep.newton_total, rep.offset_rounds = total, rounds - 1
+            if stood_open:
+                rep.uzawa_note = (f"points carried force with gap offsets where the "
+                                  f"strands stood {stood_open / c.radius:.3g} eps apart "
+                                  f"(the offsets could not be lowered)")
+            finish(problem, r, rep, opened, saved, strict)
+            return r, R, lam, rep
         if not rep.converged:
             problem.multipliers = saved
             rep.newton_total = total
@@ -103,10 +144,19 @@ def augmented_lagrangian(problem, solve_pass, rescue=None):
             rep.friction_misfit = coulomb_misfit(ce.friction, problem.friction_params(),
                                                  c.friction_tolerance)
             done = done and max(moved, rep.friction_misfit) <= c.friction_tolerance
+        if done and strict and rounds < OFFSET_ROUNDS:
+            kept = problem.multipliers.copy()
+            lift = adjust_offsets(problem, r, ce, lift)
+            if lift is not None:
+                rounds += 1              # a pass at the adjusted offsets
+                rep.uzawa, rep.penetration, rep.uzawa_converged = uzawa, pen, True
+                fallback, halvings = (r, R, lam, rep, kept, pen, opened), 0
+                stood_open = lift[3]
+                continue
         if done or uzawa == c.max_uzawa:
             rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
-            rep.uzawa_converged = done
-            finish(problem, r, rep, opened, saved)
+            rep.uzawa_converged, rep.offset_rounds = done, rounds
+            finish(problem, r, rep, opened, saved, strict)
             return r, R, lam, rep
         mu = c.penalty / m.penalty_scale[ce.pairs.slave]
         new = np.zeros_like(m.normal)
@@ -146,23 +196,115 @@ def violations(problem, ce):
     with the gaps ``d`` of the slave pairs and ``dc`` of the crossing pairs
     (None without)."""
     c = problem.contact
-    d = gap(ce.pairs.distance, c.radius)
+    d = ce.gap
     pen = float(d.max(initial=0.0))
     opened = float(np.max(-d[ce.fN > 0], initial=0.0))
     dc = None
     if ce.crossing is not None:                  # point pairs of crossing strands
-        dc = gap(ce.crossing.distance, c.radius)
+        dc = ce.crossing_gap
         pen = max(pen, float(dc.max(initial=0.0)))
         opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
     return pen, opened, d, dc
 
 
-def finish(problem, r, rep, opened, saved):
+def adjust_offsets(problem, r, ce, last=None):
+    """Adjust the gap offsets where the centrelines at ``r`` (contact
+    evaluation ``ce``) overlap by more than the contact tolerance between
+    the points that carry the contact, or stand open by more than it where
+    an offset holds them apart.  Returns None when nothing was to be done,
+    else ``(overlap, change, opened, gap)``, the deepest overlap before, the
+    largest change, whether a point stood open and by how much: passed back as ``last`` at the next round, they give the lift a
+    raise achieved (the dip rises by less than the points around it where
+    they are not on it), and the raises are scaled by its inverse (at most
+    4).
+
+    The slave points (and the crossing pairs' points) sample the strands:
+    along a curved line contact, at a crossing between slave points, or
+    where the contact curve (option ``curve="smooth"``) departs from the
+    centreline under a point force, the true distance dips below the
+    distance the law holds at those points.  The local minima of the strand
+    distance (closest points of element pairs, both parameters free,
+    :func:`skfem_rod.contact.crossing.overlaps`) within reach give each
+    slave point the deepest overlap ``p`` of a minimum within an element
+    length of it (on either strand), and each held crossing pair that of a
+    minimum at its two places; its offset moves by ``p`` less half the
+    tolerance, within ``[0, OVERLAP_FAIL eps]`` (a point with no minimum
+    near it keeps its offset; :func:`finish` clears those that carry no
+    force).  The points then hold the contact at
+    ``2 eps + offset`` (``Multipliers.offset``, ``.crossing_offset``), which
+    lifts the dip by about as much.  Minima at an end of an open rod are
+    left (the slave set leaves the end caps without contact,
+    :func:`at_an_end`)."""
+    from .contact.crossing import overlaps
+    from .contact.search import arc_distance, arclength_period
+    c, m, mesh = problem.contact, problem.multipliers, problem.mesh
+    tol = c.tolerance * c.radius
+    cap = OVERLAP_FAIL * c.radius
+    s, s_bar, p = overlaps(mesh, r, c.radius, c.exclusion, -cap - tol)
+    if not mesh.closed:
+        L = problem.rod.length
+        inside = np.minimum(np.minimum(s, L - s), np.minimum(s_bar, L - s_bar)) > 1e-9 * L
+        s, s_bar, p = s[inside], s_bar[inside], p[inside]
+    vt, period = mesh.vertices, arclength_period(mesh)
+    e = np.clip(np.searchsorted(vt, s, side="right") - 1, 0, vt.size - 2)
+    h = (vt[e + 1] - vt[e])[:, None]                       # (k, 1)
+
+    def near(x):
+        return (arc_distance(x[None, :], s[:, None], period) <= h) | \
+            (arc_distance(x[None, :], s_bar[:, None], period) <= h)
+
+    def deepest(hit):
+        return np.max(np.where(hit, p[:, None], -np.inf), axis=0, initial=-np.inf)
+
+    # slave points: the deepest minimum near each; which carry force
+    p_s = deepest(near(problem.slaves.s.ravel()))
+    carrying = np.zeros(m.offset.size, bool)
+    carrying[ce.pairs.slave[ce.fN > 0]] = True
+    # held crossing pairs: a minimum at both of their places
+    key = np.asarray(m.crossing_key, float)
+    pairs = key.ndim == 2 and key.shape[0] > 0 and m.crossing_offset.size == key.shape[0]
+    if pairs:
+        a, b = key[:, 0], key[:, 1]
+
+        def both(x, y):
+            return (arc_distance(x[None, :], s[:, None], period) <= h) & \
+                (arc_distance(y[None, :], s_bar[:, None], period) <= h)
+        p_c = deepest(both(a, b) | both(b, a))
+    deep = p.size > 0 and p.max() > tol
+    opened = np.any(carrying & (m.offset > 0) & np.isfinite(p_s) & (p_s < -tol)) or \
+        (pairs and np.any((m.crossing > 0) & (m.crossing_offset > 0) & np.isfinite(p_c)
+                          & (p_c < -tol)))
+    if not (deep or opened):
+        return None
+    gain = 1.0
+    if last is not None and deep:
+        gain = 1.0 / float(np.clip((last[0] - p.max()) / max(last[1], 1e-300), 0.25, 1.0))
+
+    def moved(off, q):
+        step = np.where(np.isfinite(q), q - 0.5 * tol, 0.0)
+        return np.clip(off + np.where(step > 0, gain * step, step), 0.0, cap)
+    new = moved(m.offset, p_s)
+    change = float(np.max(np.abs(new - m.offset), initial=0.0))
+    m.offset = new
+    if pairs:
+        new = moved(m.crossing_offset, p_c)
+        change = max(change, float(np.max(np.abs(new - m.crossing_offset), initial=0.0)))
+        m.crossing_offset = new
+    if change <= 1e-3 * tol:
+        return None
+    open_gap = max(float(np.max(-p_s[carrying & (m.offset > 0) & np.isfinite(p_s)],
+                                initial=0.0)), 0.0)
+    return float(p.max(initial=-np.inf)), change, bool(opened), open_gap
+
+
+def finish(problem, r, rep, opened, saved, strict=True):
     """The end of the loop at the state ``r`` (the report ``rep`` holds the
     loop's figures): the note when Uzawa stopped short, the multipliers
-    back to the nominal penalty, the true distance between strands; a true
-    overlap beyond :data:`OVERLAP_FAIL` fails the step (multipliers put
-    back to ``saved``), one beyond the tolerance is noted."""
+    back to the nominal penalty, the true distance between strands.  A
+    true overlap beyond the tolerance (``strict``; else beyond
+    :data:`OVERLAP_FAIL`) away from the rod's ends fails the step
+    (multipliers put back to ``saved``); one at an end is noted.  The gap
+    offsets of the points that carry no force go back to 0."""
     c, m = problem.contact, problem.multipliers
     tol = c.tolerance * c.radius
     scale = float(m.penalty_scale.max(initial=1.0))
@@ -184,10 +326,19 @@ def finish(problem, r, rep, opened, saved):
     rep.penalty_scale = scale
     true_distance(problem, r, rep)
     over = true_overlap(problem, rep)
-    if over > OVERLAP_FAIL * c.radius and not at_an_end(problem, rep):
-        fail_overlap(problem, rep)
+    if over > (tol if strict else OVERLAP_FAIL * c.radius) and not at_an_end(problem, rep):
+        fail_overlap(problem, rep, tol if strict else OVERLAP_FAIL * c.radius)
         problem.multipliers = saved
-    elif over > tol:
+        return
+    m = problem.multipliers
+    ce = rep.evaluation.contact if rep.evaluation is not None else None
+    if ce is not None:
+        carrying = np.zeros(m.offset.size, bool)
+        carrying[ce.pairs.slave[ce.fN > 0]] = True
+        m.offset[~carrying] = 0.0
+    if m.crossing_offset.size == m.crossing.size:
+        m.crossing_offset[m.crossing <= 0] = 0.0
+    if over > tol:
         s, s_bar = rep.min_distance_at
         where = "an end of the rod overlaps" if at_an_end(problem, rep) else \
             "the strands overlap between slave points"
@@ -196,7 +347,7 @@ def finish(problem, r, rep, opened, saved):
             f"tolerance {c.tolerance:g} eps)")
 
 
-def step(problem, r, R, lam, prescribed, opts, inner=None, rescue=True):
+def step(problem, r, R, lam, prescribed, opts, inner=None, rescue=True, strict=True):
     """One solve at load factor ``lam`` from ``(r, R)``: this module's
     augmented-Lagrangian loop (contact on) around ``inner`` (default the one
     Newton, :func:`skfem_rod.newton.newton`; e.g. a
@@ -235,7 +386,8 @@ def step(problem, r, R, lam, prescribed, opts, inner=None, rescue=True):
         from dataclasses import replace
         return inner(previous[0], previous[1], lam, replace(opts, contact_solve="newton"))
 
-    r1, R1, _, rep = augmented_lagrangian(problem, solve_pass, generalized if use else None)
+    r1, R1, _, rep = augmented_lagrangian(problem, solve_pass, generalized if use else None,
+                                          strict)
     return r1, R1, rep
 
 
@@ -278,15 +430,17 @@ def true_overlap(problem, rep):
     return 2.0 * problem.contact.radius - rep.min_distance
 
 
-def fail_overlap(problem, rep):
-    """A state whose strands overlap by more than :data:`OVERLAP_FAIL` eps
-    is not converged: the report says where and what to do."""
+def fail_overlap(problem, rep, allowed):
+    """A state whose strands overlap by more than ``allowed`` (the contact
+    tolerance, or :data:`OVERLAP_FAIL` eps on the way) is not converged:
+    the report says where and what to do."""
     c = problem.contact
     s, s_bar = rep.min_distance_at
     rep.converged = False
     rep.reason = (f"the strands overlap by {true_overlap(problem, rep) / c.radius:.3g} eps "
                   f"between slave points (s = {s:.6g} and {s_bar:.6g}; at most "
-                  f"{OVERLAP_FAIL:g} eps): "
+                  f"{allowed / c.radius:.3g} eps; gap offsets raised in "
+                  f"{rep.offset_rounds} rounds): "
                   + ("refine the mesh or raise n_slave" if c.crossing else
                      "switch on crossing contact (enable_contact(crossing=True)), refine "
                      "the mesh or raise n_slave"))

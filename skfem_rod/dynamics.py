@@ -249,7 +249,8 @@ class PseudoDynamics:
             return out
         presc = p.prescribed(lam_new - lam)
         if self.opts.dynamics_uzawa:
-            r1, R1, rep = al_step(p, r, R, lam_new, presc, self.inner_opts, inner=inner)
+            r1, R1, rep = al_step(p, r, R, lam_new, presc, self.inner_opts, inner=inner,
+                                  strict=False)
         else:
             # the multipliers of the last converged AL solve are held, the
             # penalty takes up new contact; the true distance is recorded

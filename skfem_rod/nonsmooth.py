@@ -56,7 +56,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .contact.friction_assembly import LAWS, coulomb_misfit, multiplier_updates
-from .contact.law import gap
 from .kinematics import ElementRotationError
 from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
 from .problem import position_correction, spin_cap, start, update_size
@@ -191,7 +190,7 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     # iterates, not at the line search's trials)
     misfit = (coulomb_misfit(fr, problem.friction_params(), c.friction_tolerance)
               if laws and jacobian else 0.0)
-    d = gap(pairs.distance, c.radius)
+    d = ce.gap
     mu = c.penalty / m.penalty_scale[pairs.slave]
     act = (d + mu * lam[pairs.slave]) > 0
     active = np.zeros(C.size, bool)

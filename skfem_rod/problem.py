@@ -53,6 +53,11 @@ class ContactEvaluation:
     friction: object = None
     crossing: object = None          # CrossingPairs (option crossing)
     crossing_fN: np.ndarray = None   # point forces of the crossing pairs
+    #: the gaps the law acted on, ``d = 2 eps + offset - distance`` per
+    #: slave pair (``Multipliers.offset``) and per crossing pair
+    gap: np.ndarray = None
+    crossing_gap: np.ndarray = None
+    offset: np.ndarray = None        # per slave pair
 
 
 @dataclass
@@ -98,19 +103,28 @@ class Multipliers:
     #: the pairs) and the next damped step started from a residual of 36
     #: that no time step could take: dt halved to 1e-8
     crossing_places: np.ndarray = None
+    #: ``(n,)`` the gap offsets of the slave points (:mod:`skfem_rod.augmented`,
+    #: :func:`~skfem_rod.augmented.adjust_offsets`): slave ``i`` is in contact
+    #: at the distance ``2 eps + offset[i]``, where the centrelines dip
+    #: below ``2 eps`` between slave points; 0 elsewhere
+    offset: np.ndarray = None
+    #: the same per crossing pair, beside ``crossing`` (carried by place)
+    crossing_offset: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def zeros(cls, n, friction):
         return cls(normal=np.zeros(n), penalty_scale=np.ones(n),
                    tangential=np.zeros((n, 3)) if friction else None,
-                   rotational=np.zeros((n, 3)) if friction else None)
+                   rotational=np.zeros((n, 3)) if friction else None,
+                   offset=np.zeros(n))
 
     def copy(self):
         c = lambda a: None if a is None else a.copy()        # noqa: E731
         return replace(self, normal=c(self.normal), penalty_scale=c(self.penalty_scale),
                        tangential=c(self.tangential), rotational=c(self.rotational),
                        crossing_key=c(self.crossing_key), crossing=c(self.crossing),
-                       crossing_places=c(self.crossing_places))
+                       crossing_places=c(self.crossing_places), offset=c(self.offset),
+                       crossing_offset=c(self.crossing_offset))
 
     def held_crossing(self):
         """The ``held`` argument of
@@ -133,10 +147,17 @@ class Multipliers:
         ok = idx >= 0
         self.crossing_places[idx[ok]] = pairs.key[ok, :2]
 
-    def rekey_crossing(self, key, lam):
-        """New crossing keys and multipliers (a multiplier update): the held
-        pairs follow from the new keys' places."""
+    def rekey_crossing(self, key, lam, offset=None):
+        """New crossing keys and multipliers (a multiplier update) with
+        their gap offsets (default: carried from the old keys by place):
+        the held pairs follow from the new keys' places."""
+        if offset is None:
+            from .contact.crossing import carry
+            old = self.crossing_offset
+            aligned = old.size == len(self.crossing_key)
+            offset = carry(self.crossing_key, old, key) if aligned else np.zeros(len(key))
         self.crossing_key, self.crossing, self.crossing_places = key, lam, None
+        self.crossing_offset = offset
 
     def nominal_penalty(self):
         """The same multipliers at the nominal penalties (factors 1)."""
@@ -426,7 +447,8 @@ class Problem:
         from .contact.search import Preference, search
         c, m, tm = self.contact, self.multipliers, self.timers
         mu = c.penalty / m.penalty_scale                   # per slave
-        reach = 2 * c.radius + (mu * m.normal).max(initial=0.0) + c.margin
+        reach = 2 * c.radius + (mu * m.normal).max(initial=0.0) + c.margin \
+            + m.offset.max(initial=0.0)
         t0 = time.perf_counter()
         pairs = search(mesh, r, self.slaves, reach, c.exclusion,
                        prefer=Preference(self.last_master, KEEP_MASTER * c.tolerance * c.radius),
@@ -435,7 +457,11 @@ class Problem:
         self.last_master[pairs.slave] = pairs.m_elem
         t1 = time.perf_counter()
         mu = mu[pairs.slave]
-        energy, force, K, fN = contact_work(mesh, r, pairs, m.normal, mu, c.radius,
+        # the contact radius of each pair, raised by half its slave's gap
+        # offset (augmented.adjust_offsets): the gap is 2 eps + offset - l
+        offset = m.offset[pairs.slave]
+        radius = c.radius + 0.5 * offset
+        energy, force, K, fN = contact_work(mesh, r, pairs, m.normal, mu, radius,
                                             tangent, cache=self.contact_patterns.normal)
         t2 = time.perf_counter()
         tm["contact_search"] += t1 - t0
@@ -448,7 +474,7 @@ class Problem:
             r_n, R_n = reference
             params = self.friction_params()
             state = SlipState(r, R, r_n, R_n, m.tangential, m.rotational)
-            ff, Kf, fr = friction_work(mesh, state, pairs, NormalLaw(m.normal, mu, c.radius),
+            ff, Kf, fr = friction_work(mesh, state, pairs, NormalLaw(m.normal, mu, radius),
                                        params, tangent=tangent, K_normal=K,
                                        cache=self.contact_patterns.friction,
                                        multiplier_jacobian=self.friction_jacobian)
@@ -456,7 +482,8 @@ class Problem:
             if tangent:
                 K = Kf                                  # includes the normal tangent
             tm["friction_assembly"] += time.perf_counter() - t2
-        ce = ContactEvaluation(pairs=pairs, fN=fN, energy=energy, friction=fr)
+        ce = ContactEvaluation(pairs=pairs, fN=fN, energy=energy, friction=fr,
+                               gap=2.0 * radius - pairs.distance, offset=offset)
         if c.crossing:
             from .contact.crossing import carry, crossing_pairs, crossing_work
             t3 = time.perf_counter()
@@ -465,12 +492,15 @@ class Problem:
                                 held=m.held_crossing())
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
+            off = carry(m.crossing_key, m.crossing_offset, cp.key) \
+                if m.crossing_offset.size == len(m.crossing_key) else np.zeros(cp.size)
             ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
-                                            c.radius, tangent, fade=not frozen)
+                                            c.radius + 0.5 * off, tangent, fade=not frozen)
             force = force + fc
             if tangent:
                 K = K + Kc
             ce.crossing, ce.crossing_fN, ce.energy = cp, fNc, ce.energy + ec
+            ce.crossing_gap = 2.0 * c.radius + off - cp.distance
             tm["crossing"] += time.perf_counter() - t3
         return ce, force, K
 
@@ -734,6 +764,8 @@ class Report:
     #: from the last converged pass (:func:`skfem_rod.augmented.step`): the
     #: failed pass's reason, else ""
     rescued: str = ""
+    #: passes at adjusted gap offsets (:func:`skfem_rod.augmented.adjust_offsets`)
+    offset_rounds: int = 0
     friction_moved: float = 0.0
     friction_misfit: float = 0.0     # friction_assembly.coulomb_misfit of the last pass
     # generalized Newton (skfem_rod.nonsmooth): |C| per iteration and the

@@ -33,7 +33,7 @@ class ContactState:
     with a positive normal force)."""
     s: np.ndarray            # slave arclengths
     s_bar: np.ndarray        # master arclengths
-    gap: np.ndarray          # d = 2 eps - distance (positive: penetration)
+    gap: np.ndarray          # d = 2 eps + offset - distance (positive: penetration)
     force: np.ndarray        # f_N per unit length
     normal: np.ndarray       # N (master -> slave)
     weight: np.ndarray       # slave quadrature weights (ds)
@@ -51,6 +51,10 @@ class ContactState:
     slip_R: np.ndarray = None
     dissipation: float = 0.0     # friction work dissipated in the step
     min_distance: float = None   # true smallest distance between strands (centrelines)
+    #: per point, the gap offset it acted with (augmented.adjust_offsets):
+    #: in contact at the distance 2 eps + offset, where the centrelines dip
+    #: below 2 eps between slave points
+    offset: np.ndarray = None
 
     @property
     def friction(self):
@@ -134,7 +138,7 @@ class Result:
         act = fN > 0
         contact = ContactState(
             s=pairs.s[act], s_bar=pairs.s_bar[act],
-            gap=2 * self.rod.contact.radius - pairs.distance[act], force=fN[act],
+            gap=ce.gap[act], force=fN[act], offset=ce.offset[act],
             normal=pairs.normal[act], weight=pairs.weight[act],
             penetration=float(report.penetration), uzawa=int(report.uzawa),
             uzawa_converged=bool(report.uzawa_converged),

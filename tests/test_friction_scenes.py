@@ -132,8 +132,21 @@ def test_plectoneme_cycle_with_friction(plectoneme_cycle):
     # the looped states' lowest eigenvalues are of the frictionless loop's
     # size (+1.5e-4 there), not the -9 to -18 of the symmetrized friction
     # tangent, which had every looped state pushed off as a saddle
-    low = [st.lowest_eigenvalue for st in res.steps if st.contact.force.size]
-    assert low and min(low) > -1e-3
+    # A state the frictionless tangent calls a saddle is pushed off once and,
+    # with friction, kept with its eigenvalue when the flow comes back to
+    # it (solver.LoadStepper.snap, docs/stability.md): the log says so.  Since
+    # the recorded states hold the true distance (gap offsets; before, they
+    # overlapped by 0.025-0.073 eps between slave points) the top of the
+    # cycle, 1.5 turns, is such a state (-0.162 measured); the other looped
+    # states measure -9e-5 to +4e-5.
+    looped = [(k, st) for k, st in enumerate(res.steps) if st.contact.force.size]
+    assert looped
+    for k, st in looped:
+        lam = st.load_factor
+        flagged = any(line.startswith(f"step to lam={lam:.6g}: unstable equilibrium")
+                      for line in res.log)
+        assert st.lowest_eigenvalue > (-1.0 if flagged else -1e-3), (k, lam)
+    assert sum(st.lowest_eigenvalue < -1e-3 for _, st in looped) <= 1
 
 
 @pytest.mark.slow

@@ -18,14 +18,14 @@ def _field(default, kind, doc, **kw):
     return field(default=default, metadata={"spec": Spec(kind, doc, **kw)})
 
 
-#: a state whose strands overlap by more than this fraction of the contact
-#: radius between slave points (away from the rod's ends) is not converged;
-#: an overlap between the tolerance and this is recorded (Step.contact
-#: .min_distance) and noted in Result.log.  Point-to-curve contact at Gauss
-#: points cannot hold two convex strands that touch between slave points
-#: to the tolerance (the squeezed loop: 1e-3 eps at 13 eps elements); a
+#: a state on the way (a damped step of the pseudo-dynamics, a push off a
+#: saddle) whose strands overlap by more than this fraction of the contact
+#: radius between slave points (away from the rod's ends) is rejected: a
 #: strand passing through another (a crossing between slave points: 0.9 eps
-#: measured) is caught.
+#: measured) is caught.  An equilibrium that is recorded must hold the
+#: true distance to the contact tolerance (``augmented.finish``; the gap
+#: offsets of ``augmented.adjust_offsets`` close what the slave points
+#: miss), and this is also the most its gap offsets may reach.
 OVERLAP_FAIL = 0.1
 
 #: options derived from others when not given (None): name -> how

@@ -420,6 +420,26 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
                        (float(out[2]), float(out[3])))
 
 
+def overlaps(mesh, r, radius, exclusion, depth):
+    """The local minima of the strand distance (closest points of element
+    pairs, both parameters free; each element pair's distinct minima) where
+    the tubes of radius ``radius`` overlap by more than ``depth``: arrays
+    ``(s, s_bar, penetration)``, ``penetration = 2 radius - distance``.
+    Only element pairs whose lower bound lies within ``2 radius - depth``
+    are solved."""
+    reach = 2.0 * radius - depth
+    none = np.zeros(0)
+    if reach <= 0:
+        return none, none, none
+    e, f, lb, r_el = _element_pairs(mesh, r, reach, exclusion)
+    keep = lb < reach
+    if not keep.any():
+        return none, none, none
+    _, _, _, _, s, s_bar, dist, _ = _solve(mesh, e[keep], f[keep], r_el, every=True)
+    ok = (arc_distance(s, s_bar, arclength_period(mesh)) >= exclusion) & (dist < reach)
+    return s[ok], s_bar[ok], 2.0 * radius - dist[ok]
+
+
 def slave_half_gap(n_slave):
     """The largest arclength from a point of an element to its nearest
     Gauss slave point, in element lengths (0.194 for the paper's three)."""

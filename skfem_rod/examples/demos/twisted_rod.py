@@ -164,18 +164,22 @@ def plectoneme_theory(radius):
 # ---------------------------------------------------------------------------
 # 3. The experiment
 # ---------------------------------------------------------------------------
-def build(length, n_elements, radius, turns, imperfection, penalty_factor=0.01):
+def build(length, n_elements, radius, turns, imperfection, penalty_factor=0.01,
+          crossing=False):
     """The rod: ``straight_rod`` with contact of radius ``radius`` and a
     small constant lateral dead force ``imperfection * T`` (along y) at
     mid-length.  The contact compliance is ``penalty_factor`` times the
     library default ``10 eps^4 / B`` (see docs/twisted_rod.md: Uzawa does
-    not settle at crossing contacts with the default)."""
+    not settle at crossing contacts with the default).  ``crossing``: point
+    pairs at the closest points of crossing strands too
+    (docs/crossing-contact.md): with elements several radii long the loop's
+    crossing falls between slave points."""
     rod = straight_rod(length, n_elements, radius, turns)
     s = rod.mesh.s_nodes
     rod.add_force(float(s[np.argmin(np.abs(s - length / 2))]), [0.0, imperfection * T, 0.0],
                   constant=True)
     rod.enable_contact(radius=radius, penalty=penalty_factor * 10 * radius ** 4 / B,
-                       tolerance=1e-3, max_uzawa=30)
+                       tolerance=1e-3, max_uzawa=30, crossing=crossing)
     return rod
 
 
@@ -201,13 +205,14 @@ def record(result, k, turns):
 
 
 def solve(length=8.0, n_elements=48, radius=0.05, turns=6.0, n_steps=60,
-          imperfection=0.01, penalty_factor=0.01, log=None, **options):
+          imperfection=0.01, penalty_factor=0.01, log=None, crossing=False, **options):
     """Twist the tensioned rod by ``turns`` turns in ``n_steps`` equal
-    increments (``rod.solve(n_steps, snap="relax", stability=True)``).
+    increments (``rod.solve(n_steps, snap="relax", stability=True)``;
+    ``crossing``: see :func:`build`).
 
     Returns a dict with the result, the per-step figures (``records``) and
     the wall time."""
-    rod = build(length, n_elements, radius, turns, imperfection, penalty_factor)
+    rod = build(length, n_elements, radius, turns, imperfection, penalty_factor, crossing)
     records = []
 
     def callback(result, k):
