@@ -212,11 +212,11 @@ def adjust_offsets(problem, r, ce, last=None):
     evaluation ``ce``) overlap by more than the contact tolerance between
     the points that carry the contact, or stand open by more than it where
     an offset holds them apart.  Returns None when nothing was to be done,
-    else ``(overlap, change, opened, gap)``, the deepest overlap before, the
-    largest change, whether a point stood open and by how much: passed back as ``last`` at the next round, they give the lift a
-    raise achieved (the dip rises by less than the points around it where
-    they are not on it), and the raises are scaled by its inverse (at most
-    4).
+    else ``(overlap, change, opened, gap)``: the deepest overlap before,
+    the largest change, whether a point stood open and by how much.  Passed
+    back as ``last`` at the next round, they give the lift a raise achieved
+    (the dip rises by less than the points around it where they are not on
+    it), and the raises are scaled by its inverse (at most 4).
 
     The slave points (and the crossing pairs' points) sample the strands:
     along a curved line contact, at a crossing between slave points, or
@@ -271,7 +271,9 @@ def adjust_offsets(problem, r, ce, last=None):
                 (arc_distance(y[None, :], s_bar[:, None], period) <= h)
         p_c = deepest(both(a, b) | both(b, a))
     deep = p.size > 0 and p.max() > tol
-    opened = np.any(carrying & (m.offset > 0) & np.isfinite(p_s) & (p_s < -tol)) or \
+    holding = carrying & (m.offset > 0) & np.isfinite(p_s)
+    open_gap = max(float(np.max(-p_s[holding], initial=0.0)), 0.0)
+    opened = np.any(holding & (p_s < -tol)) or \
         (pairs and np.any((m.crossing > 0) & (m.crossing_offset > 0) & np.isfinite(p_c)
                           & (p_c < -tol)))
     if not (deep or opened):
@@ -292,8 +294,6 @@ def adjust_offsets(problem, r, ce, last=None):
         m.crossing_offset = new
     if change <= 1e-3 * tol:
         return None
-    open_gap = max(float(np.max(-p_s[carrying & (m.offset > 0) & np.isfinite(p_s)],
-                                initial=0.0)), 0.0)
     return float(p.max(initial=-np.inf)), change, bool(opened), open_gap
 
 

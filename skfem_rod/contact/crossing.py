@@ -423,7 +423,8 @@ def min_distance(mesh, r, radius, exclusion, reach=None):
 def overlaps(mesh, r, radius, exclusion, depth):
     """The local minima of the strand distance (closest points of element
     pairs, both parameters free; each element pair's distinct minima) where
-    the tubes of radius ``radius`` overlap by more than ``depth``: arrays
+    the tubes of radius ``radius`` overlap by more than ``depth`` (a
+    negative ``depth``: stand apart by less than ``-depth``): arrays
     ``(s, s_bar, penetration)``, ``penetration = 2 radius - distance``.
     Only element pairs whose lower bound lies within ``2 radius - depth``
     are solved."""
