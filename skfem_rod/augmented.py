@@ -144,7 +144,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             rep.friction_misfit = coulomb_misfit(ce.friction, problem.friction_params(),
                                                  c.friction_tolerance)
             done = done and max(moved, rep.friction_misfit) <= c.friction_tolerance
-        if done and strict and rounds < OFFSET_ROUNDS:
+        if done and strict and rounds < OFFSET_ROUNDS and needs_offsets(problem, r, rep):
             kept = problem.multipliers.copy()
             lift = adjust_offsets(problem, r, ce, lift)
             if lift is not None:
@@ -207,6 +207,16 @@ def violations(problem, ce):
     return pen, opened, d, dc
 
 
+def needs_offsets(problem, r, rep):
+    """Whether :func:`adjust_offsets` has anything to look at: the true
+    distance at ``r`` (recorded in ``rep``, :func:`true_distance`) overlaps
+    by more than the tolerance, or some offset acts."""
+    m = problem.multipliers
+    over = true_distance(problem, r, rep)
+    return bool(over > problem.contact.tolerance * problem.contact.radius
+                or m.offset.max(initial=0.0) > 0 or m.crossing_offset.max(initial=0.0) > 0)
+
+
 def adjust_offsets(problem, r, ce, last=None):
     """Adjust the gap offsets where the centrelines at ``r`` (contact
     evaluation ``ce``) overlap by more than the contact tolerance between
@@ -249,15 +259,15 @@ def adjust_offsets(problem, r, ce, last=None):
     e = np.clip(np.searchsorted(vt, s, side="right") - 1, 0, vt.size - 2)
     h = (vt[e + 1] - vt[e])[:, None]                       # (k, 1)
 
-    def near(x):
-        return (arc_distance(x[None, :], s[:, None], period) <= h) | \
-            (arc_distance(x[None, :], s_bar[:, None], period) <= h)
+    def close(x, y):                      # (minima, points): within h
+        return arc_distance(x[None, :], y[:, None], period) <= h
 
     def deepest(hit):
         return np.max(np.where(hit, p[:, None], -np.inf), axis=0, initial=-np.inf)
 
     # slave points: the deepest minimum near each; which carry force
-    p_s = deepest(near(problem.slaves.s.ravel()))
+    xs = problem.slaves.s.ravel()
+    p_s = deepest(close(xs, s) | close(xs, s_bar))
     carrying = np.zeros(m.offset.size, bool)
     carrying[ce.pairs.slave[ce.fN > 0]] = True
     # held crossing pairs: a minimum at both of their places
@@ -265,11 +275,7 @@ def adjust_offsets(problem, r, ce, last=None):
     pairs = key.ndim == 2 and key.shape[0] > 0 and m.crossing_offset.size == key.shape[0]
     if pairs:
         a, b = key[:, 0], key[:, 1]
-
-        def both(x, y):
-            return (arc_distance(x[None, :], s[:, None], period) <= h) & \
-                (arc_distance(y[None, :], s_bar[:, None], period) <= h)
-        p_c = deepest(both(a, b) | both(b, a))
+        p_c = deepest((close(a, s) & close(b, s_bar)) | (close(b, s) & close(a, s_bar)))
     deep = p.size > 0 and p.max() > tol
     holding = carrying & (m.offset > 0) & np.isfinite(p_s)
     open_gap = max(float(np.max(-p_s[holding], initial=0.0)), 0.0)
@@ -324,7 +330,8 @@ def finish(problem, r, rep, opened, saved, strict=True):
         problem.penalty_start = m.penalty_scale.copy()
     problem.multipliers = m.nominal_penalty()
     rep.penalty_scale = scale
-    true_distance(problem, r, rep)
+    if rep.min_distance is None:           # else measured at r by needs_offsets
+        true_distance(problem, r, rep)
     over = true_overlap(problem, rep)
     if over > (tol if strict else OVERLAP_FAIL * c.radius) and not at_an_end(problem, rep):
         fail_overlap(problem, rep, tol if strict else OVERLAP_FAIL * c.radius)

@@ -147,15 +147,20 @@ class Multipliers:
         ok = idx >= 0
         self.crossing_places[idx[ok]] = pairs.key[ok, :2]
 
+    def crossing_offsets(self, key):
+        """The gap offsets of crossing pairs with the keys ``key``, carried
+        by place from the held keys (0 for new places)."""
+        from .contact.crossing import carry
+        if self.crossing_offset.size != len(self.crossing_key):
+            return np.zeros(len(key))
+        return carry(self.crossing_key, self.crossing_offset, key)
+
     def rekey_crossing(self, key, lam, offset=None):
         """New crossing keys and multipliers (a multiplier update) with
         their gap offsets (default: carried from the old keys by place):
         the held pairs follow from the new keys' places."""
         if offset is None:
-            from .contact.crossing import carry
-            old = self.crossing_offset
-            aligned = old.size == len(self.crossing_key)
-            offset = carry(self.crossing_key, old, key) if aligned else np.zeros(len(key))
+            offset = self.crossing_offsets(key)
         self.crossing_key, self.crossing, self.crossing_places = key, lam, None
         self.crossing_offset = offset
 
@@ -492,8 +497,7 @@ class Problem:
                                 held=m.held_crossing())
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
-            off = carry(m.crossing_key, m.crossing_offset, cp.key) \
-                if m.crossing_offset.size == len(m.crossing_key) else np.zeros(cp.size)
+            off = m.crossing_offsets(cp.key)
             ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
                                             c.radius + 0.5 * off, tangent, fade=not frozen)
             force = force + fc
