@@ -80,13 +80,17 @@ class Multipliers:
 
     The normal compliance at slave ``i`` is ``penalty / penalty_scale[i]``;
     the friction compliances are ``mu_T / friction_scale`` and
-    ``mu_R / friction_scale``.  :meth:`copy` and assignment back to
+    ``mu_R / friction_scale``; the crossing pairs' compliance is
+    ``crossing_penalty / crossing_scale``.  :meth:`copy` and assignment back to
     ``Problem.multipliers`` are the save and restore of a rejected step."""
     normal: np.ndarray
     penalty_scale: np.ndarray
     tangential: np.ndarray = None     # (n, 3) with friction on
     rotational: np.ndarray = None     # (n, 3) with friction on
     friction_scale: float = 1.0
+    #: the crossing pairs' adaptive penalty factor, one for all of them
+    #: (:func:`skfem_rod.augmented.adapt_crossing_penalty`)
+    crossing_scale: float = 1.0
     #: crossing pairs (option ``crossing``): element-pair keys and multipliers
     crossing_key: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     crossing: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -167,7 +171,7 @@ class Multipliers:
     def nominal_penalty(self):
         """The same multipliers at the nominal penalties (factors 1)."""
         return replace(self.copy(), penalty_scale=np.ones_like(self.penalty_scale),
-                       friction_scale=1.0)
+                       friction_scale=1.0, crossing_scale=1.0)
 
 
 @dataclass
@@ -498,7 +502,8 @@ class Problem:
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             off = m.crossing_offsets(cp.key)
-            ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam, c.crossing_penalty,
+            ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam,
+                                            c.crossing_penalty / m.crossing_scale,
                                             c.radius + 0.5 * off, tangent, fade=not frozen)
             force = force + fc
             if tangent:

@@ -236,3 +236,92 @@ def test_a_failing_later_pass_is_solved_by_the_generalized_newton(monkeypatch):
         assert c.penetration <= tol and np.all(np.abs(c.gap) <= tol)
         assert np.all(c.force >= 0)
         assert np.abs(a.r - b.r).max() <= 5 * tol
+
+
+def test_crossing_penalty_grows_where_the_crossing_pairs_crawl():
+    """The crossing pairs' one factor (``Multipliers.crossing_scale``): it
+    grows by ``penalty_growth`` when their largest violation (a penetration
+    or an open gap under force) is above the tolerance and fell by less than
+    PENALTY_DROP since the last update; not when it fell faster, not within
+    the tolerance, never above ``max_penalty_scale``; the nominal penalty and
+    a restored copy put it back."""
+    from types import SimpleNamespace
+
+    from skfem_rod.augmented import PENALTY_DROP, adapt_crossing_penalty
+    rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 8)
+    rod.enable_contact(crossing=True)
+    problem = Problem(rod)
+    c, m = problem.contact, problem.multipliers
+    tol = c.tolerance * c.radius
+    g = c.penalty_growth
+
+    def update(dc, fN, last):
+        ce = SimpleNamespace(crossing_fN=np.asarray(fN, float))
+        return adapt_crossing_penalty(problem, ce, np.asarray(dc, float), last)
+
+    saved = m.copy()
+    last = update([50 * tol, -1.0], [1.0, 0.0], np.inf)     # first: nothing to compare
+    assert m.crossing_scale == 1.0 and last == 50 * tol
+    last = update([45 * tol, -1.0], [1.0, 0.0], last)       # crawls: grows
+    assert m.crossing_scale == g
+    last = update([-40 * tol], [2.0], last)                 # open under force, crawls
+    assert m.crossing_scale == g * g and last == 40 * tol
+    last = update([0.5 * PENALTY_DROP * last], [2.0], last)  # fell fast: kept
+    assert m.crossing_scale == g * g
+    last = update([0.5 * tol, -3 * tol], [1.0, 0.0], last)  # within tol (the open
+    assert m.crossing_scale == g * g                        # one carries no force)
+    for _ in range(20):
+        last = update([50 * tol], [1.0], 50 * tol)
+    assert m.crossing_scale == c.max_penalty_scale
+    assert m.nominal_penalty().crossing_scale == 1.0
+    problem.multipliers = saved
+    assert problem.multipliers.crossing_scale == 1.0
+
+
+@pytest.mark.parametrize("rescue", [True, False])
+def test_a_later_pass_failing_at_a_raised_penalty_runs_again_at_the_nominal_one(rescue):
+    """A loop around another inner solve (the damped steps, the gradient
+    flow): a pass after the first that fails at a raised penalty (here on
+    purpose, the first time; in the plectoneme's winding at 1.95 turns a
+    damped pass diverged at 16 times the crossing pairs' nominal penalty)
+    runs again from the last converged pass at the nominal penalty.  The
+    step converges to the state plain Uzawa reaches, within the
+    tolerances, and the report says so (``rescued``); without ``rescue``
+    the step fails with the pass's reason and the multipliers as they
+    were."""
+    from skfem_rod.augmented import step
+    from skfem_rod.newton import newton
+    from skfem_rod.options import make_options
+    from skfem_rod.problem import failed
+    eps = SEC.radius
+
+    def pressed():
+        rod = Rod(hairpin(eps, 4 * eps), SEC, 30)
+        rod.clamp("start").add_force("end", [0, -0.6, 0])
+        rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, max_uzawa=60)
+        return rod, Problem(rod)
+
+    opts = make_options({})
+    rod, problem = pressed()
+    r_plain, _, plain = step(problem, rod.r0, rod.R0, 1.0, None, opts)
+    assert plain.converged and plain.uzawa_converged and plain.penalty_scale > 1
+    rod, problem = pressed()
+    fails = []
+
+    def inner(r, R, lam, opts, prescribed=None):
+        if problem.multipliers.penalty_scale.max() > 1 and not fails:
+            fails.append(lam)
+            return failed(r, R, lam, [], 0, "made to fail")
+        return newton(problem, r, R, lam, opts, prescribed=prescribed)
+
+    saved = problem.multipliers.copy()
+    r1, _, rep = step(problem, rod.r0, rod.R0, 1.0, None, opts, inner=inner, rescue=rescue)
+    assert fails                                   # a pass at a raised penalty was made to fail
+    if not rescue:
+        assert not rep.converged and rep.reason == "made to fail"
+        assert np.array_equal(problem.multipliers.normal, saved.normal)
+        return
+    assert rep.converged and rep.uzawa_converged and rep.rescued == "made to fail"
+    tol = problem.contact.tolerance * eps
+    assert rep.penetration <= tol
+    assert np.abs(r1 - r_plain).max() <= 5 * tol

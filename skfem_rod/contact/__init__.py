@@ -72,7 +72,9 @@ class ContactOptions:
         4 over an update, the penalty stiffness ``1 / mu_N`` is multiplied by
         ``penalty_growth`` for the rest of the load step (the next step
         starts from there, or at the nominal penalty without
-        ``penalty_memory``); default 4; 1 keeps the penalty fixed.
+        ``penalty_memory``); the crossing pairs' one factor likewise
+        (``augmented.adapt_crossing_penalty``); default 4; 1 keeps the
+        penalty fixed.
         The converged answer is the same to the tolerances; only the number
         of updates changes.
     max_penalty_scale : cap of that growth, as a multiple of the nominal
