@@ -19,7 +19,9 @@ In plain sight::
     a later pass failing (rescue given, once): again from the last
         converged pass at the nominal penalty, by the generalized Newton
         (load steps) or by the inner solve itself (:func:`step`)
-    failed inner solve: multipliers restored, failure returned
+    failed inner solve: multipliers restored, failure returned; a state
+        on the way (strict=False, the damped steps) keeps the last
+        converged pass instead, as at max_uzawa
 
 The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
 where a point's violation did not drop by a factor 4 over an update, its
@@ -69,7 +71,9 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
         (:func:`adjust_offsets`, at most :data:`OFFSET_ROUNDS` times) and the
         loop goes on; a true overlap beyond the tolerance at the end fails
         the step.  False (the damped steps of the pseudo-dynamics, states
-        on the way): only an overlap beyond :data:`OVERLAP_FAIL` fails.
+        on the way): only an overlap beyond :data:`OVERLAP_FAIL` fails,
+        and a later pass that fails (after the rescue) leaves the last
+        converged pass as the answer, as ``max_uzawa`` would.
 
     Returns
     -------
@@ -89,6 +93,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
     previous = None
     rounds, lift, fallback, halvings, stood_open = 0, None, None, 0, 0.0
     rescued = ""                   # the reason of the pass the rescue solved again
+    passed = None                  # the last converged pass (not strict: kept on failure)
     while True:
         r, R, lam, rep = solve_pass(previous)
         total += rep.iterations
@@ -132,6 +137,18 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
                                   f"(the offsets could not be lowered)")
             finish(problem, r, rep, opened, saved, strict)
             return r, R, lam, rep
+        if not rep.converged and passed is not None and not strict:
+            # a state on the way (a damped step): the last converged pass
+            # is kept, at the multipliers it converged with, as a loop
+            # stopped at max_uzawa would be
+            why = rep.reason
+            r, R, lam, rep, problem.multipliers, pen, opened = passed
+            rep.newton_total, rep.uzawa_converged, rep.rescued = total, False, rescued
+            finish(problem, r, rep, opened, saved, strict)
+            rep.uzawa_note = "; ".join(filter(None, (
+                f"a later Uzawa pass failed ({why}); the last converged pass is kept",
+                rep.uzawa_note)))
+            return r, R, lam, rep
         if not rep.converged:
             problem.multipliers = saved
             rep.newton_total = total
@@ -156,6 +173,9 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
                 fallback, halvings = (r, R, lam, rep, kept, pen, opened), 0
                 stood_open = lift[3]
                 continue
+        if not strict:
+            rep.uzawa, rep.penetration = uzawa, pen
+            passed = (r, R, lam, rep, m.copy(), pen, opened)
         if done or uzawa == c.max_uzawa:
             rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
             rep.uzawa_converged, rep.offset_rounds, rep.rescued = done, rounds, rescued

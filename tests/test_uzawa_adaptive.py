@@ -325,3 +325,44 @@ def test_a_later_pass_failing_at_a_raised_penalty_runs_again_at_the_nominal_one(
     tol = problem.contact.tolerance * eps
     assert rep.penetration <= tol
     assert np.abs(r1 - r_plain).max() <= 5 * tol
+
+
+@pytest.mark.parametrize("strict", [False, True])
+def test_a_state_on_the_way_keeps_the_last_converged_pass(strict):
+    """A loop that records no equilibrium (``strict=False``: the damped
+    steps of the pseudo-dynamics) keeps the last converged pass when a
+    later pass fails, rescue included, as it keeps the state of a loop
+    stopped at ``max_uzawa``: converged, not ``uzawa_converged``, a note,
+    the state and multipliers that pass converged with.  A strict loop (an
+    equilibrium to record) fails instead, its multipliers put back."""
+    from skfem_rod.augmented import step
+    from skfem_rod.newton import newton
+    from skfem_rod.options import make_options
+    from skfem_rod.problem import failed
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 30)
+    rod.clamp("start").add_force("end", [0, -0.6, 0])
+    rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, max_uzawa=60)
+    problem = Problem(rod)
+    opts = make_options({})
+    first = []
+
+    def inner(r, R, lam, opts, prescribed=None):
+        if first:
+            return failed(r, R, lam, [], 0, "made to fail")
+        out = newton(problem, r, R, lam, opts, prescribed=prescribed)
+        first.append((out[0].copy(), problem.multipliers.copy()))
+        return out
+
+    saved = problem.multipliers.copy()
+    r1, _, rep = step(problem, rod.r0, rod.R0, 1.0, None, opts, inner=inner, strict=strict)
+    assert first
+    if strict:
+        assert not rep.converged and rep.reason == "made to fail"
+        assert np.array_equal(problem.multipliers.normal, saved.normal)
+        return
+    assert rep.converged and not rep.uzawa_converged
+    assert "the last converged pass is kept" in rep.uzawa_note and "made to fail" in rep.uzawa_note
+    assert rep.penetration > rod.contact.tolerance * eps     # the pass the loop stopped at
+    assert np.array_equal(r1, first[0][0])
+    assert np.array_equal(problem.multipliers.normal, first[0][1].normal)
