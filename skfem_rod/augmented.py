@@ -73,7 +73,8 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
         the step.  False (the damped steps of the pseudo-dynamics, states
         on the way): only an overlap beyond :data:`OVERLAP_FAIL` fails,
         and a later pass that fails (after the rescue) leaves the last
-        converged pass as the answer, as ``max_uzawa`` would.
+        converged pass after an update as the answer, as ``max_uzawa``
+        would.
 
     Returns
     -------
@@ -140,7 +141,11 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
         if not rep.converged and passed is not None and not strict:
             # a state on the way (a damped step): the last converged pass
             # is kept, at the multipliers it converged with, as a loop
-            # stopped at max_uzawa would be
+            # stopped at max_uzawa would be -- if it took an update in: a
+            # step ending on its first pass ends where it started when the
+            # load is held (seen at the plectoneme's 2.125 turns with a
+            # variant that also stopped stalled loops, not kept: damped
+            # steps at dt = 8, each the same state, each polish failing)
             why = rep.reason
             r, R, lam, rep, problem.multipliers, pen, opened = passed
             rep.newton_total, rep.uzawa_converged, rep.rescued = total, False, rescued
@@ -175,7 +180,8 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
                 continue
         if not strict:
             rep.uzawa, rep.penetration = uzawa, pen
-            passed = (r, R, lam, rep, m.copy(), pen, opened)
+            if uzawa:                # a pass that took an update in (else no progress)
+                passed = (r, R, lam, rep, m.copy(), pen, opened)
         if done or uzawa == c.max_uzawa:
             rep.uzawa, rep.newton_total, rep.penetration = uzawa, total, pen
             rep.uzawa_converged, rep.offset_rounds, rep.rescued = done, rounds, rescued

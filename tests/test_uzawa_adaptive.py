@@ -333,8 +333,10 @@ def test_a_state_on_the_way_keeps_the_last_converged_pass(strict):
     steps of the pseudo-dynamics) keeps the last converged pass when a
     later pass fails, rescue included, as it keeps the state of a loop
     stopped at ``max_uzawa``: converged, not ``uzawa_converged``, a note,
-    the state and multipliers that pass converged with.  A strict loop (an
-    equilibrium to record) fails instead, its multipliers put back."""
+    the state and multipliers that pass converged with.  Only a pass after
+    an update counts (the first pass ends where the step started, at the
+    load held).  A strict loop (an equilibrium to record) fails instead,
+    its multipliers put back."""
     from skfem_rod.augmented import step
     from skfem_rod.newton import newton
     from skfem_rod.options import make_options
@@ -345,18 +347,25 @@ def test_a_state_on_the_way_keeps_the_last_converged_pass(strict):
     rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, max_uzawa=60)
     problem = Problem(rod)
     opts = make_options({})
-    first = []
+    first = []                          # the passes that converged
 
     def inner(r, R, lam, opts, prescribed=None):
-        if first:
+        if len(first) == fail_from:
             return failed(r, R, lam, [], 0, "made to fail")
         out = newton(problem, r, R, lam, opts, prescribed=prescribed)
         first.append((out[0].copy(), problem.multipliers.copy()))
         return out
 
     saved = problem.multipliers.copy()
+    fail_from = 1                       # every pass after the first fails
     r1, _, rep = step(problem, rod.r0, rod.R0, 1.0, None, opts, inner=inner, strict=strict)
-    assert first
+    assert len(first) == 1
+    assert not rep.converged and rep.reason == "made to fail"
+    assert np.array_equal(problem.multipliers.normal, saved.normal)
+    first.clear()
+    fail_from = 2                       # the pass after the first update converges
+    r1, _, rep = step(problem, rod.r0, rod.R0, 1.0, None, opts, inner=inner, strict=strict)
+    assert len(first) == 2
     if strict:
         assert not rep.converged and rep.reason == "made to fail"
         assert np.array_equal(problem.multipliers.normal, saved.normal)
@@ -364,5 +373,7 @@ def test_a_state_on_the_way_keeps_the_last_converged_pass(strict):
     assert rep.converged and not rep.uzawa_converged
     assert "the last converged pass is kept" in rep.uzawa_note and "made to fail" in rep.uzawa_note
     assert rep.penetration > rod.contact.tolerance * eps     # the pass the loop stopped at
-    assert np.array_equal(r1, first[0][0])
-    assert np.array_equal(problem.multipliers.normal, first[0][1].normal)
+    assert rep.uzawa == 1
+    assert np.array_equal(r1, first[1][0])
+    assert np.array_equal(problem.multipliers.normal, first[1][1].normal)
+
