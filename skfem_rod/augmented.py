@@ -21,7 +21,7 @@ In plain sight::
         (load steps) or by the inner solve itself (:func:`step`)
     failed inner solve: multipliers restored, failure returned; a state
         on the way (strict=False, the damped steps) keeps the last
-        converged pass instead, as at max_uzawa
+        converged pass after an update instead, as at max_uzawa
 
 The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
 where a point's violation did not drop by a factor 4 over an update, its
@@ -412,9 +412,9 @@ def step(problem, r, R, lam, prescribed, opts, inner=None, rescue=True, strict=T
     gradient flow), or with the generalized Newton as the contact solve,
     such a pass runs again by ``inner`` itself from the last converged
     pass at the nominal penalty: in the plectoneme's winding at 1.95 turns
-    a damped pass diverged (residual 46 -> 39 -> 69 -> 2054) after the crossing
-    pairs' penalty had grown to 16 times the nominal one, and at the
-    nominal penalty it converged in 5 iterations."""
+    a damped pass diverged (residual 46 -> 39 -> 69 -> 2054) after the
+    crossing pairs' penalty had grown to 16 times the nominal one, and at
+    the nominal penalty it converged in 5 iterations."""
     use = rescue and inner is None and problem.contact is not None \
         and opts.contact_solve == "uzawa"
     if inner is None:
