@@ -430,8 +430,7 @@ def step(problem, r, R, lam, prescribed, opts, inner=None, rescue=True, strict=T
         from dataclasses import replace
         return inner(previous[0], previous[1], lam, replace(opts, contact_solve="newton"))
 
-    again = generalized if use else (solve_pass if rescue and problem.contact is not None
-                                     else None)
+    again = generalized if use else (solve_pass if rescue else None)
     r1, R1, _, rep = augmented_lagrangian(problem, solve_pass, again, strict)
     return r1, R1, rep
 
@@ -491,6 +490,14 @@ def fail_overlap(problem, rep, allowed):
                      "the mesh or raise n_slave"))
 
 
+def grown(scale, c):
+    """A penalty factor (or an array of them) grown by the contact options'
+    ``penalty_growth``, at most ``max_penalty_scale``: the one growth of
+    :func:`adapt_penalty`, :func:`adapt_crossing_penalty` and
+    :func:`adapt_friction_penalty`."""
+    return np.minimum(scale * c.penalty_growth, c.max_penalty_scale)
+
+
 def adapt_penalty(problem, pairs, d, fN, new, last):
     """The penalty update of the method of multipliers (Bertsekas,
     *Constrained Optimization and Lagrange Multiplier Methods*, 1982,
@@ -528,7 +535,7 @@ def adapt_penalty(problem, pairs, d, fN, new, last):
         short |= now & (np.abs(new - m.normal) > c.friction_tolerance * fN.max())
     grow = short & (viol > PENALTY_DROP * last)
     m.penalty_scale = np.where(
-        grow, np.minimum(m.penalty_scale * c.penalty_growth, c.max_penalty_scale),
+        grow, grown(m.penalty_scale, c),
         m.penalty_scale)
     return viol
 
@@ -550,7 +557,7 @@ def adapt_crossing_penalty(problem, ce, dc, last):
     act = (dc > 0) | (ce.crossing_fN > 0)
     viol = float(np.max(np.abs(dc[act]), initial=0.0))
     if viol > c.tolerance * c.radius and viol > PENALTY_DROP * last:
-        m.crossing_scale = min(m.crossing_scale * c.penalty_growth, c.max_penalty_scale)
+        m.crossing_scale = grown(m.crossing_scale, c)
     return viol
 
 
@@ -567,5 +574,5 @@ def adapt_friction_penalty(problem, fN, new, moved, last):
     c, m = problem.contact, problem.multipliers
     normal = (float(np.abs(new - m.normal).max(initial=0.0)) / fN.max() if fN.size else 0.0)
     if moved > c.friction_tolerance and moved > PENALTY_DROP * last and moved > 2 * normal:
-        m.friction_scale = min(m.friction_scale * c.penalty_growth, c.max_penalty_scale)
+        m.friction_scale = grown(m.friction_scale, c)
     return moved
