@@ -504,12 +504,13 @@ class Problem:
             off = m.crossing_offsets(cp.key)
             ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam,
                                             c.crossing_penalty / m.crossing_scale,
-                                            c.radius + 0.5 * off, tangent, fade=not frozen)
+                                            c.radius, tangent, fade=not frozen, offset=off)
             force = force + fc
             if tangent:
                 K = K + Kc
             ce.crossing, ce.crossing_fN, ce.energy = cp, fNc, ce.energy + ec
-            ce.crossing_gap = 2.0 * c.radius + off - cp.distance
+            # a fading pair's offset fades with it (crossing_work)
+            ce.crossing_gap = 2.0 * c.radius + cp.weight * off - cp.distance
             tm["crossing"] += time.perf_counter() - t3
         return ce, force, K
 

@@ -358,18 +358,20 @@ def test_pressed_crossing_any_angle_any_element_size(degrees, h):
 
 # -- the new terms against finite differences ---------------------------------
 
-def _fd_check(mesh, r, held, seed=0, mu=0.1, threshold=PairThreshold()):
+def _fd_check(mesh, r, held, seed=0, mu=0.1, threshold=PairThreshold(), offset=0.0):
     """Energy -> force -> tangent of the crossing pairs at ``r`` with the
     held set ``held`` fixed (as within one Newton solve), central
     differences along a random direction of the positions.  Pairs at full
     weight derive from an energy (symmetric tangent); a fading pair's
-    force does not (its weight's derivative: docs/crossing-contact.md)."""
+    force does not (its weight's derivative: docs/crossing-contact.md).
+    ``offset``: every pair's gap offset (held within a solve)."""
     rng = np.random.default_rng(seed)
 
     def work(rr, tangent=True):
         cp = crossing_pairs(mesh, rr, EPS, np.pi * EPS, threshold=threshold, held=held)
         lam = carry(held[0], held[1], cp.key)
-        return cp, crossing_work(mesh, rr, cp, lam, mu, EPS, tangent)
+        return cp, crossing_work(mesh, rr, cp, lam, mu, EPS, tangent,
+                                 offset=np.full(cp.size, offset))
 
     cp, (E, f, K, fN) = work(r)
     d = np.zeros(mesh.n_dofs)
@@ -422,6 +424,31 @@ def test_fading_pair_force_tangent(degrees, seed):
     K1 = crossing_work(mesh, r, full, np.zeros(1), 1.0, EPS)[2]
     assert abs(Kf - cp.weight[0] * K1).max() <= 1e-12 * abs(K1).max()
     assert abs(Kf - Kf.T).max() <= 1e-12 * abs(Kf).max()
+
+
+@pytest.mark.parametrize("degrees, seed", [(26.0, 0), (29.5, 2)])
+def test_a_fading_pairs_offset_fades_with_it(degrees, seed):
+    """A fading pair holds the distance ``2 eps + w offset``: its gap
+    offset (raised where the centrelines dipped between the points that
+    held a crossing) fades with its weight, as its share of the gap does.
+    Before, a pair at weight 0.06 in the plectoneme's winding kept an
+    offset of 1.8e-3 eps that only it could hold: its gap stood at twice
+    the tolerance through 30 Uzawa updates at every damped step.  The
+    tangent, with the offset's derivative through the weight, against
+    central differences; at full weight the whole offset acts."""
+    mesh, r = two_strands(np.radians(degrees), 1.5 * EPS, bend=0.03)
+    r = r + 1e-3 * EPS * np.random.default_rng(seed).normal(size=r.shape)
+    off = 0.4 * EPS
+    cp, fN = _fd_check(mesh, r, (np.zeros((0, 5)), np.zeros(0)), seed=seed, mu=1.0,
+                       threshold=_WIDE, offset=off)
+    w = cp.weight[0]
+    assert cp.size == 1 and 0.0 < w < 1.0
+    l = cp.distance[0] if cp.length is None else cp.length[0]
+    assert fN[0] == pytest.approx(w * max(2 * EPS + w * off - l, 0.0), rel=1e-12)
+    full = dataclasses.replace(cp, weight=np.ones(1), slope=None)
+    f1 = crossing_work(mesh, r, full, np.zeros(1), 1.0, EPS, tangent=False,
+                       offset=np.full(1, off))[3]
+    assert f1[0] == pytest.approx(2 * EPS + off - l, rel=1e-12)
 
 
 def test_the_weight_rises_continuously_with_the_angle():

@@ -999,7 +999,7 @@ def carry(old_key, old_lam, new_key):
     return lam
 
 
-def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
+def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offset=None):
     """Energy, force vector ``(n_dofs,)``, tangent (CSC or None) and the
     per-pair forces ``f_N`` of the crossing pairs (``pairs`` from
     :func:`crossing_pairs` at ``r``; ``lam`` ``(m,)`` their multipliers,
@@ -1013,13 +1013,22 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
     there the tangent is not symmetric.  ``fade=False`` leaves that
     derivative out (the frozen-weight tangent the stability checks read,
     :meth:`skfem_rod.problem.Problem.free_tangent`).  The per-pair forces
-    returned are ``w f_N``."""
+    returned are ``w f_N``.
+
+    ``offset`` ``(m,)``: the pairs' gap offsets
+    (:func:`skfem_rod.augmented.adjust_offsets`); a pair holds the distance
+    ``2 radius + w offset``.  The offset fades with the weight: a fading
+    pair shares its gap with the Gauss pairs, which hold their own offsets
+    (docs/crossing-contact.md, section 4).  Its derivative through ``w`` is
+    in the tangent."""
     n = mesh.n_dofs
     m = pairs.size
     if m == 0:
         return 0.0, np.zeros(n), (sp.csc_matrix((n, n)) if tangent else None), np.zeros(0)
     l = pairs.distance if pairs.length is None else pairs.length
-    d = gap(l, radius)
+    w = np.ones(m) if pairs.weight is None else pairs.weight
+    off = np.zeros(m) if offset is None else np.asarray(offset, float)
+    d = gap(l, radius) + w * off
     fN, dfN = normal_force(d, lam, mu)
     energy = float(np.sum((1.0 if pairs.weight is None else pairs.weight)
                           * potential(d, lam, mu)))
@@ -1037,7 +1046,6 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
     lq = Fq / l[:, None]
     nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
     dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(m, 24)
-    w = np.ones(m) if pairs.weight is None else pairs.weight
     force = np.bincount(dofs.ravel(), weights=(-(w * fN)[:, None] * lq).ravel(), minlength=n)
     if not tangent:
         return energy, force, None, w * fN
@@ -1077,7 +1085,9 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True):
                                         D[i], X1[i], X2[i], Y1[i], Y2[i], aD[i], aX1[i],
                                         aY1[i], S[i])
             dw = dw + wb * own
-            g = -fN[i, None, None] * lq[i, :, None]
+            # w f_N(d) with d = 2 eps + w offset - l: the weight's
+            # derivative enters through the factor and through the gap
+            g = -(fN[i] + w[i] * dfN[i] * off[i])[:, None, None] * lq[i, :, None]
             blocks += [g * dw[:, None, :], g * (ws * ps.probe_dq[i])[:, None, :],
                        g * (wb * beside)[:, None, :]]
             rows += [dofs[i]] * 3
