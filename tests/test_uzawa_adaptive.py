@@ -375,5 +375,43 @@ def test_a_state_on_the_way_keeps_the_last_converged_pass(strict):
     assert rep.penetration > rod.contact.tolerance * eps     # the pass the loop stopped at
     assert rep.uzawa == 1
     assert np.array_equal(r1, first[1][0])
-    assert np.array_equal(problem.multipliers.normal, first[1][1].normal)
+    # the multipliers are the forces that pass applied: eq. (4.2a)'s update
+    # from the ones it converged with (augmented.fold_forces)
+    from skfem_rod.contact.law import uzawa_update
+    kept, ce = first[1][1], rep.evaluation.contact
+    mu = problem.contact.penalty / kept.penalty_scale[ce.pairs.slave]
+    expected = np.zeros_like(kept.normal)
+    expected[ce.pairs.slave] = uzawa_update(ce.gap, kept.normal[ce.pairs.slave], mu)
+    assert np.allclose(problem.multipliers.normal, expected, rtol=1e-12, atol=0.0)
+    assert not np.allclose(expected, kept.normal)
 
+
+
+def test_the_next_solve_starts_in_balance_after_a_raised_penalty():
+    """A loop that converged at a raised penalty leaves as multipliers the
+    forces its last pass applied (``augmented.fold_forces``), so the state
+    it converged to is in balance at the nominal penalty up to ``d / mu``
+    at each point: the out-of-balance the next solve starts from (a polish,
+    the next damped step) is far below the one the multipliers that pass
+    converged with would leave, about ``(s - 1) d / mu``."""
+    from skfem_rod.augmented import step
+    from skfem_rod.newton import newton
+    from skfem_rod.options import make_options
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 30)
+    rod.clamp("start").add_force("end", [0, -0.6, 0])
+    rod.enable_contact(penalty=1e4 * eps**4 / SEC.EI1, penalty_growth=4.0, max_uzawa=60)
+    problem = Problem(rod)
+    passes = []
+
+    def inner(r, R, lam, opts, prescribed=None):
+        passes.append(problem.multipliers.copy())
+        return newton(problem, r, R, lam, opts, prescribed=prescribed)
+
+    r1, R1, rep = step(problem, rod.r0, rod.R0, 1.0, None, make_options({}), inner=inner)
+    assert rep.converged and rep.uzawa_converged and rep.penalty_scale >= 16
+    scale = problem.force_scale(rep.evaluation)
+    start = problem.residual_norm(problem.evaluate(r1, R1, 1.0)) / scale
+    problem.multipliers = passes[-1].nominal_penalty()
+    unfolded = problem.residual_norm(problem.evaluate(r1, R1, 1.0)) / scale
+    assert start <= 0.05 * unfolded, (start, unfolded)
