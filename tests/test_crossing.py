@@ -13,8 +13,8 @@ from scipy.spatial import cKDTree
 
 from skfem_rod import Rod, Section, geometry
 from skfem_rod.contact import law
-from skfem_rod.contact.crossing import (PairThreshold, carry, closest_points, crossing_pairs,
-                                        crossing_work, min_distance, sampled_angle)
+from skfem_rod.contact.crossing import (TWIN, PairThreshold, carry, closest_points, crossing_pairs,
+                                        crossing_work, local_minima, min_distance, sampled_angle)
 from skfem_rod.contact.search import (monomial_coefficients, arc_distance, curve_point, search,
                                       slave_points)
 from skfem_rod.element import shape_functions
@@ -843,3 +843,49 @@ def test_blended_local_factor_force_tangent(x0, seed):
                        threshold=thr)
     assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
     assert min(cp.u[0], 1 - cp.u[0]) < 0.25 and min(cp.v[0], 1 - cp.v[0]) < 0.25
+
+
+#: the monomial coefficients (rows: 1, t, t^2, t^3) of the smooth contact
+#: curve on elements 15 and 84 of the 100-element plectoneme with friction
+#: (gamma_T = 0.3, 1.96 turns), in a Newton iterate of a damped step
+_KINK_C1 = np.array([[1.2879838198720606e-01, 6.1224663721364064e-02, -2.4373951809689900e-02],
+                     [6.2694147953666485e-03, 7.7889723566547178e-03, 4.2986669212200651e-04],
+                     [-2.4485817973546320e-04, 1.3908573652796075e-04, 7.7892244202773520e-04],
+                     [1.8302492885355348e-05, -1.2480689091522168e-05, -2.1739538713403533e-04]])
+_KINK_C2 = np.array([[1.2000509191022833e-01, 6.8498303008478603e-02, 2.4693876987989603e-02],
+                     [5.8331522463069968e-03, -8.0511309412563264e-03, 1.2047540552053461e-03],
+                     [1.9107752041053194e-04, 1.0418773026948935e-04, -1.0964746903575906e-04],
+                     [1.9066381935869958e-05, 1.5983768060570669e-05, -2.4345052370163336e-04]])
+
+
+def test_a_result_on_a_node_does_not_shadow_an_interior_minimum():
+    """An element pair with a strict interior minimum 0.044 from a node
+    and, 0.05 away in both parameters, a closer point held on that node
+    (recorded in the plectoneme: the node point is no minimum of the whole
+    strands, a point of the neighbour element is closer still).  Both are
+    returned: the interior one is a stationary point with a positive
+    definite Hessian (central differences of the two cubics).
+    Before, the node result shadowed it as a twin once both parameters
+    came within 0.05, the crossing pair it carried (force 19.6) vanished
+    between Newton iterates 1e-5 apart, and the damped steps stopped."""
+    C1, C2 = _KINK_C1[:, :, None], _KINK_C2[:, :, None]
+    k, u, v, d = local_minima(C1, C2)
+    powers = lambda t: np.array([np.ones_like(t), t, t * t, t ** 3])           # noqa: E731
+    X = lambda t: np.einsum("k...,kc->...c", powers(t), _KINK_C1)            # noqa: E731
+    Y = lambda t: np.einsum("k...,kc->...c", powers(t), _KINK_C2)            # noqa: E731
+    # the interior result is a strict local minimum, checked independently
+    # by central differences of the squared distance of the two cubics
+    inner = np.flatnonzero((u > 0) & (u < 1) & (v > 0) & (v < 1))
+    assert inner.size == 1 and 0.0 < u[inner[0]] < 0.05
+    q = np.array([u[inner[0]], v[inner[0]]])
+    Fq = lambda z: float(np.sum((X(np.array(z[0])) - Y(np.array(z[1]))) ** 2))   # noqa: E731
+    h, e = 1e-5, np.eye(2) * 1e-5
+    grad = np.array([(Fq(q + e[a]) - Fq(q - e[a])) / (2 * h) for a in range(2)])
+    hess = np.array([[(Fq(q + e[a] + e[b]) - Fq(q + e[a] - e[b]) - Fq(q - e[a] + e[b])
+                       + Fq(q - e[a] - e[b])) / (4 * h * h) for b in range(2)] for a in range(2)])
+    lo, hi = np.linalg.eigvalsh(hess)
+    assert np.abs(grad).max() <= 1e-6 * lo and lo > 1e-3 * hi
+    found = inner
+    node = u == 0.0
+    assert node.sum() == 1 and d[node][0] < d[found][0]        # the closer node result
+    assert abs(u[node][0] - q[0]) < TWIN and abs(v[node][0] - q[1]) < TWIN
