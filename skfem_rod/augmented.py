@@ -22,6 +22,9 @@ In plain sight::
     failed inner solve: multipliers restored, failure returned; a state
         on the way (strict=False, the damped steps) keeps the last
         converged pass after an update instead, as at max_uzawa
+    at the end: lambda_N, crossing lambda <- the forces the last pass
+        applied (eq. 4.2a's update there), then the penalty factors back
+        to 1 (:func:`fold_forces`)
 
 The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
 where a point's violation did not drop by a factor 4 over an update, its
@@ -337,7 +340,8 @@ def adjust_offsets(problem, r, ce, last=None):
 def finish(problem, r, rep, opened, saved, strict=True):
     """The end of the loop at the state ``r`` (the report ``rep`` holds the
     loop's figures): the note when Uzawa stopped short, the multipliers
-    back to the nominal penalty, the true distance between strands.  A
+    set to the forces applied (:func:`fold_forces`) and back to the
+    nominal penalty, the true distance between strands.  A
     true overlap beyond the tolerance (``strict``; else beyond
     :data:`OVERLAP_FAIL`) away from the rod's ends fails the step
     (multipliers put back to ``saved``); one at an end is noted.  The gap
@@ -354,9 +358,9 @@ def finish(problem, r, rep, opened, saved, strict=True):
                f"(tolerance {c.friction_tolerance:g})"
                if problem.friction else "")
             + (f"; penalty raised up to {scale:.3g} times" if scale > 1 else ""))
-    # back to the nominal penalty: at the converged multipliers the state is
-    # an equilibrium for any penalty (to the tolerances), and the stability
-    # check and the next step see the nominal tangent
+    # back to the nominal penalty, the multipliers the forces applied: the
+    # state is then an equilibrium for any penalty (to d / mu), and the
+    # stability check and the next step see the nominal tangent
     if c.penalty_memory:
         problem.penalty_start = m.penalty_scale.copy()
     fold_forces(m, rep.evaluation)
