@@ -7,7 +7,8 @@ The loop, in plain sight::
     evaluate G(y, lam), K(y, lam)
     repeat:
         converged when |G_free| <= rtol * force scale (or the update is
-            below increment_tol), the prescribed motions are all applied and
+            below increment_tol and did not raise the residual more than
+            10 times), the prescribed motions are all applied and
             (continuation) the arclength equation holds
         solve K dy = -G - K p   (p: what is left of the prescribed motion)
         continuation: the bordered system adds dlam (two back substitutions)
@@ -29,7 +30,7 @@ from .kinematics import ElementRotationError
 # Report, the position correction and its threshold live in problem.py
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
-from .problem import Increment, State, spin_cap, start, update_size
+from .problem import Increment, State, settled, spin_cap, start, update_size
 from .problem import failed as _fail
 
 
@@ -165,7 +166,7 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
             return _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
         bordered_ok = border is None or \
             abs(border.residual()) <= 1e-8 * max(abs(border.target), 1e-300)
-        if (rn <= opts.rtol * scale or last_update <= opts.increment_tol) \
+        if settled(history, last_update, opts.rtol * scale, opts.increment_tol) \
                 and not np.any(remaining) and bordered_ok:
             return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev)
         if it == opts.max_iterations:

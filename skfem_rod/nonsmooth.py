@@ -58,7 +58,7 @@ import scipy.sparse.linalg as spla
 from .contact.friction_assembly import LAWS, coulomb_misfit, multiplier_updates
 from .kinematics import ElementRotationError
 from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
-from .problem import position_correction, spin_cap, start, update_size
+from .problem import position_correction, settled, spin_cap, start, update_size
 from .problem import failed as _fail
 
 #: Armijo's sufficient decrease of the merit |(G, C)| per unit step
@@ -392,8 +392,8 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         merits.append(cs.merit)
         tolerances = (cs.penetration <= tol and cs.opened <= tol
                       and max(cs.friction_moved, cs.friction_misfit) <= c.friction_tolerance)
-        if not np.any(remaining) and (tolerances or polish) and (
-                rn <= opts.rtol * scale or last_update <= opts.increment_tol):
+        if not np.any(remaining) and (tolerances or polish) and \
+                settled(history, last_update, opts.rtol * scale, opts.increment_tol):
             return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev,
                                      complementarity=complementarity,
                                      polished_from=polished_from, step_lengths=alphas,

@@ -745,6 +745,35 @@ def start(problem, r, R, lam, prescribed):
         return remaining, None, str(err)
 
 
+#: a Newton loop stops on a small update (``increment_tol``) only where the
+#: residual did not grow more than this factor at that update
+#: (:func:`settled`)
+SETTLED_GROWTH = 10.0
+
+
+def settled(history, last_update, rtol_force, increment_tol):
+    """Newton's convergence test on the residual norms ``history`` (the
+    last one at the current iterate): the residual below ``rtol_force``
+    (rtol times the force scale), or the last update below
+    ``increment_tol`` with the residual not grown by more than
+    :data:`SETTLED_GROWTH` at it.
+
+    The update test is for a residual at its round-off floor.  An update
+    can be small where the residual is not: in a damped step at a small
+    ``dt`` the viscous term bounds the update by ``dt |G| / W``.  When such
+    an update crossed a jump of the contact force (a crossing pair whose
+    minimum the search lost, measured in the frictional plectoneme at 1.95
+    turns: residual 1.6e-2 -> 66 at the last iterate, force 41.8 gone), the
+    step was reported converged and accepted at a residual of 66, and every
+    later step from there failed down to ``dt`` = 7e-9."""
+    rn = history[-1]
+    if rn <= rtol_force:
+        return True
+    if last_update > increment_tol:
+        return False
+    return len(history) < 2 or rn <= SETTLED_GROWTH * max(history[-2], rtol_force)
+
+
 def update_size(problem, dy):
     """The size of an applied update ``dy`` (dof basis): the largest nodal
     move over the rod's length, or the largest spin (rad); Newton stops
