@@ -1045,8 +1045,7 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
     off = np.zeros(m) if offset is None else np.asarray(offset, float)
     d = gap(l, radius) + w * off
     fN, dfN = normal_force(d, lam, mu)
-    energy = float(np.sum((1.0 if pairs.weight is None else pairs.weight)
-                          * potential(d, lam, mu)))
+    energy = float(np.sum(w * potential(d, lam, mu)))
     Nu, dNu, d2Nu = (a.T for a in shape_functions(pairs.u))       # (m, 4)
     Nv, dNv, d2Nv = (a.T for a in shape_functions(pairs.v))
     re, rf = r[mesh.nodes[pairs.e]], r[mesh.nodes[pairs.f]]       # (m, 4, 3)
