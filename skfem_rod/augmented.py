@@ -22,9 +22,9 @@ In plain sight::
     failed inner solve: multipliers restored, failure returned; a state
         on the way (strict=False, the damped steps) keeps the last
         converged pass after an update instead, as at max_uzawa
-    at the end: lambda_N, crossing lambda <- the forces the last pass
-        applied (eq. 4.2a's update there), then the penalty factors back
-        to 1 (:func:`fold_forces`)
+    at the end: where a penalty factor was raised, lambda_N (crossing
+        lambda) <- the force the last pass applied (eq. 4.2a's update
+        there), then the factors back to 1 (:func:`fold_forces`)
 
 The penalty adapts as in the method of multipliers (:func:`adapt_penalty`):
 where a point's violation did not drop by a factor 4 over an update, its
@@ -340,8 +340,8 @@ def adjust_offsets(problem, r, ce, last=None):
 def finish(problem, r, rep, opened, saved, strict=True):
     """The end of the loop at the state ``r`` (the report ``rep`` holds the
     loop's figures): the note when Uzawa stopped short, the multipliers
-    set to the forces applied (:func:`fold_forces`) and back to the
-    nominal penalty, the true distance between strands.  A
+    set to the forces applied where the penalty was raised
+    (:func:`fold_forces`) and back to the nominal penalty, the true distance between strands.  A
     true overlap beyond the tolerance (``strict``; else beyond
     :data:`OVERLAP_FAIL`) away from the rod's ends fails the step
     (multipliers put back to ``saved``); one at an end is noted.  The gap
@@ -391,10 +391,10 @@ def finish(problem, r, rep, opened, saved, strict=True):
 
 
 def fold_forces(m, ev):
-    """Set the normal multipliers ``m`` of the slave points and of the
-    crossing pairs to the forces they applied at the evaluation ``ev`` (the
-    last pass's): eq. (4.2a)'s update at the converged state, taken before
-    the penalty factors go back to 1.
+    """Where the penalty factors of ``m`` are raised (slave points, the
+    crossing pairs' factor), set the normal multipliers to the forces
+    applied at the evaluation ``ev`` (the last pass's): eq. (4.2a)'s
+    update at the converged state, taken before the factors go back to 1.
 
     The loop stops on the gaps, and a pass that converged at a penalty
     raised ``s`` times (:func:`adapt_penalty`) applied ``[lambda + s d /
@@ -406,19 +406,19 @@ def fold_forces(m, ev):
     and damped step, where the state had converged to 1e-8; the polishes
     failed in 12 iterations three times in a row, each a damped phase
     going on at rest.  With the forces kept, the next solve starts off by
-    ``d / mu`` at most, as after any update at the nominal penalty.  (Folded
-    only where a factor was raised, the knot's cycle was the same to the
-    iteration: benchmarks/RESULTS_knot.md; one rule for every point is
-    kept.)  The friction multipliers are left: their loop stops only when
-    they have stopped moving (``friction_tolerance``), so they already are
-    the forces applied."""
+    ``d / mu`` at most, as after any update at the nominal penalty.  At a
+    factor of 1 nothing jumps, and the multipliers stay those the last pass
+    converged with.  Folding there too changed the paths of three scene
+    tests (the twisted rod's second snap at 2.6 turns instead of 2.0, two
+    friction scenes' Newton histories).  The friction multipliers are
+    left: their loop stops only when they have stopped moving
+    (``friction_tolerance``), so they already are the forces applied."""
     ce = None if ev is None else ev.contact
     if ce is None:
         return
-    normal = np.zeros_like(m.normal)
-    normal[ce.pairs.slave] = ce.fN
-    m.normal = normal
-    if ce.crossing is not None:
+    raised = m.penalty_scale[ce.pairs.slave] > 1.0
+    m.normal[ce.pairs.slave[raised]] = ce.fN[raised]
+    if ce.crossing is not None and m.crossing_scale > 1.0:
         m.rekey_crossing(ce.crossing.key, ce.crossing_fN.copy())
 
 
