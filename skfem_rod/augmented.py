@@ -341,11 +341,12 @@ def finish(problem, r, rep, opened, saved, strict=True):
     """The end of the loop at the state ``r`` (the report ``rep`` holds the
     loop's figures): the note when Uzawa stopped short, the multipliers
     set to the forces applied where the penalty was raised
-    (:func:`fold_forces`) and back to the nominal penalty, the true distance between strands.  A
-    true overlap beyond the tolerance (``strict``; else beyond
-    :data:`OVERLAP_FAIL`) away from the rod's ends fails the step
-    (multipliers put back to ``saved``); one at an end is noted.  The gap
-    offsets of the points that carry no force go back to 0."""
+    (:func:`fold_forces`) and back to the nominal penalty, the true
+    distance between strands.  A true overlap beyond the tolerance
+    (``strict``; else beyond :data:`OVERLAP_FAIL`) away from the rod's
+    ends fails the step (multipliers put back to ``saved``); one at an end
+    is noted.  The gap offsets of the points that carry no force go back
+    to 0."""
     c, m = problem.contact, problem.multipliers
     tol = c.tolerance * c.radius
     scale = float(m.penalty_scale.max(initial=1.0))
