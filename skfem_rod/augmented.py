@@ -610,7 +610,10 @@ def adapt_friction_penalty(problem, fN, new, moved, last):
     the normal penalty).  Returns the movement, the ``last`` of the next
     call."""
     c, m = problem.contact, problem.multipliers
-    normal = (float(np.abs(new - m.normal).max(initial=0.0)) / fN.max() if fN.size else 0.0)
+    top = float(fN.max(initial=0.0))
+    if top <= 0.0:                # no normal force: no bound to measure the movement by
+        return moved
+    normal = float(np.abs(new - m.normal).max(initial=0.0)) / top
     if moved > c.friction_tolerance and moved > PENALTY_DROP * last and moved > 2 * normal:
         m.friction_scale = grown(m.friction_scale, c)
     return moved

@@ -417,3 +417,23 @@ def test_the_next_solve_starts_in_balance_after_a_raised_penalty():
     problem.multipliers = passes[-1].nominal_penalty()
     unfolded = problem.residual_norm(problem.evaluate(r1, R1, 1.0)) / scale
     assert start <= 0.05 * unfolded, (start, unfolded)
+
+
+def test_friction_penalty_rule_with_no_normal_force():
+    """Every contact point open (``f_N`` all 0) while the friction
+    multipliers still moved: the friction penalty rule has no Coulomb bound
+    to measure the movement by, leaves the factor alone and raises no
+    warning (it divided 0 by 0 before: measured in the frictional
+    plectoneme)."""
+    import warnings
+
+    from skfem_rod.augmented import adapt_friction_penalty
+
+    rod = Rod(hairpin(SEC.radius, 4 * SEC.radius), SEC, 8)
+    rod.enable_contact(gamma_T=0.3)
+    problem = Problem(rod)
+    n = problem.multipliers.normal.size
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        moved = adapt_friction_penalty(problem, np.zeros(3), np.zeros(n), 0.5, 1.0)
+    assert moved == 0.5 and problem.multipliers.friction_scale == 1.0
