@@ -12,9 +12,10 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.contact import law
-from skfem_rod.contact.crossing import (TWIN, PairThreshold, carry, closest_points, crossing_pairs,
-                                        crossing_work, local_minima, min_distance, sampled_angle)
+from skfem_rod.contact import crossing, law
+from skfem_rod.contact.crossing import (ACROSS, OWN, TWIN, PairThreshold, carry, closest_points,
+                                        crossing_pairs, crossing_work, local_minima, min_distance,
+                                        sampled_angle)
 from skfem_rod.contact.search import (monomial_coefficients, arc_distance, curve_point, search,
                                       slave_points)
 from skfem_rod.element import shape_functions
@@ -843,6 +844,68 @@ def test_blended_local_factor_force_tangent(x0, seed):
                        threshold=thr)
     assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
     assert min(cp.u[0], 1 - cp.u[0]) < 0.25 and min(cp.v[0], 1 - cp.v[0]) < 0.25
+
+
+@pytest.mark.parametrize("x0, reading", [(-0.015 * H, (ACROSS, ACROSS)),
+                                         (0.005 * H, (OWN, ACROSS)), (0.02 * H, (OWN, OWN))])
+def test_fold_reading_force_tangent_at_a_node(monkeypatch, x0, reading):
+    """The weight's fold reading (crossing._fold_reading) near and on the
+    nodes: with its share raised to 1, the readings of the elements' own
+    second derivatives and of the neighbours' across the nodes (plus the
+    node's share ``1 - g``) win here.  Their derivative is in the tangent:
+    central differences of the force."""
+    monkeypatch.setattr(crossing, "FOLD_SHARE", 1.0)
+    thr = PairThreshold(min_angle=np.pi / 3, n_slave=3, tolerance=1.0)
+    mesh, r = _curvature_jumps(x0)
+    r = r + 1e-4 * EPS * np.random.default_rng(3).normal(size=r.shape)
+    cp, fN = _fd_check(mesh, r, (np.zeros((0, 5)), np.zeros(0)), mu=1.0, threshold=thr)
+    assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
+    assert tuple(cp.slope.reading[0]) == reading and cp.slope.beta[0] != 0.0
+
+
+def test_fold_reading_of_a_minimum_held_on_a_kink(monkeypatch):
+    """A minimum held on the kink of the C0 centreline (the V of
+    ``test_minimum_on_a_node_energy_force_tangent``, its first element
+    bent towards strand B, B crossing at 45 degrees) reads both elements'
+    second derivatives at the node: with the fold reading's share raised to
+    1 the bent element's wins, ``(ACROSS, OWN)`` from the element pair of
+    the second one, which represents the minimum (found from both).
+    Central differences of the force."""
+    monkeypatch.setattr(crossing, "FOLD_SHARE", 1.0)
+    thr = PairThreshold(min_angle=np.pi / 3, n_slave=3, tolerance=1.0)
+    mesh = RodMesh(4 * H, 4)
+    r = np.zeros((mesh.n_nodes, 3))
+    u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
+    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    r[mesh.nodes[0]] = (np.outer(u - 1, [H, 0, 0]) + np.outer(u, [0, 0, 0.5 * EPS])
+                        + np.outer(10.0 * EPS * u * (u - 1), [0, 0, 1.0]))
+    r[mesh.nodes[1]] = np.outer(u, [H, 0, 0]) + np.outer(1 - u, [0, 0, 0.5 * EPS])
+    r[mesh.nodes[3]] = np.outer((u - 0.4) * H, d) + [0, 0, 2.2 * EPS]
+    r[mesh.nodes[2, 2:]] = [[H, 0, 3 * H], [0, -H, 3 * H]]
+    r = r + 1e-3 * EPS * np.random.default_rng(4).normal(size=r.shape)
+    cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=thr)
+    assert cp.size == 1 and (cp.e[0], cp.u[0]) == (1, 0.0) and cp.v_free[0]
+    cp, fN = _fd_check(mesh, r, (cp.key, np.array([0.3])), threshold=thr)
+    assert cp.size == 1 and 0.0 < cp.weight[0] < 1.0 and fN[0] > 0
+    assert tuple(cp.slope.reading[0]) == (ACROSS, OWN) and cp.slope.beta[0] != 0.0
+
+
+def test_the_fold_reading_is_continuous_across_a_node(monkeypatch):
+    """With the fold reading's share raised to 1 it weighs the crossing
+    sliding across both nodes of ``_curvature_jumps`` (readings of either
+    element, across the node and on it): the weight stays continuous,
+    sampled every 1e-4 element."""
+    monkeypatch.setattr(crossing, "FOLD_SHARE", 1.0)
+    thr = PairThreshold(min_angle=np.pi / 3, n_slave=3, tolerance=1.0)
+    W, R = [], set()
+    for x0 in np.linspace(-0.05, 0.05, 1001) * H:
+        mesh, r = _curvature_jumps(x0)
+        cp = crossing_pairs(mesh, r, EPS, np.pi * EPS, threshold=thr)
+        assert cp.size == 1
+        W.append(cp.weight[0])
+        R.add(tuple(cp.slope.reading[0]))
+    assert {(ACROSS, ACROSS), (OWN, OWN), (ACROSS, OWN)} <= R
+    assert np.abs(np.diff(W)).max() < 0.01
 
 
 #: the monomial coefficients (rows: 1, t, t^2, t^3) of the smooth contact

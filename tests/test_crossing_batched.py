@@ -79,7 +79,7 @@ def weigh_reference(mesh, r, mn, radius, threshold, exclusion):
     R = np.sqrt(l * l + c2) - l
     dR = l / np.sqrt(l * l + c2) - 1.0
     sb2 = np.sin(threshold.angle(hmin, radius)) ** 2
-    w_beta, slope_beta = X._smoothstep(mn["sin2"] / sb2)
+    w_beta, slope_beta = X._smoothstep(mn["weigh_sin2"] / sb2)
     todo = np.flatnonzero(w_beta > 0)
     rise = np.full(m, np.inf)
     dofs, dq, dp = np.zeros((m, 24), np.int64), np.zeros((m, 24)), np.zeros((m, 2))

@@ -367,6 +367,8 @@ class WeightSlope:
     probe_dofs: np.ndarray  # (m, 24) position dofs of the lowest probe
     probe_dq: np.ndarray    # (m, 24) its distance's derivative there
     probe_dp: np.ndarray    # (m, 2) and in the pair's parameters u, v
+    reading: np.ndarray = None  # (m, 2) which second derivatives the weight's
+                                # sin^2 beta reads, per strand (:func:`_fold_reading`)
 
     def fading(self):
         """Indices of the pairs whose weight has a slope (in a fade zone;
@@ -565,6 +567,7 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     # next.  The angle that weighs a minimum therefore reads the second
     # derivatives made continuous across the nodes (:func:`_second`).
     k = np.flatnonzero(ok)
+    k = k[_canonical(mesh, e[k], f[k], u[k], v[k], s[k], s_bar[k])]
     k = k[_one_per_crossing(s[k], s_bar[k], dist[k],
                             TWIN * float(np.mean(np.diff(mesh.vertices))), held)]
     X2c = _second(mesh, r, np.concatenate([e[k], f[k]]), np.concatenate([u[k], v[k]]))[0].T
@@ -572,20 +575,98 @@ def _minima(mesh, r, radius, exclusion, reach, held=None):
     huu, hvv, huv = _hessian(D[:, k], X1[:, k], X2c, Y1[:, k], Y2c)
     sin2 = np.clip((huu * hvv - huv * huv) / np.maximum(np.abs(huu * hvv), 1e-300), 0.0, 1.0)
     cos = np.abs(_dot(X1, Y1)) / np.sqrt(n1 * n2)
-    return dict(e=e[k], f=f[k], u=u[k], v=v[k], s=s[k], s_bar=s_bar[k], distance=dist[k],
-                D=D[:, k].T, u_free=fu[k], v_free=fv[k], sin2=sin2, cos=cos[k])
+    mn = dict(e=e[k], f=f[k], u=u[k], v=v[k], s=s[k], s_bar=s_bar[k], distance=dist[k],
+              D=D[:, k].T, u_free=fu[k], v_free=fv[k], sin2=sin2, cos=cos[k])
+    _fold_reading(mesh, r, mn, X1[:, k], X2[:, k], Y1[:, k], Y2[:, k])
+    return mn
+
+
+#: a reading of the local angle from the elements' own second derivatives
+#: (:func:`_fold_reading`) weighs a minimum where it is below this share of
+#: the blended one's ``sin^2 beta``
+FOLD_SHARE = 0.25
+
+
+def _psd_sin2(huu, hvv, huv):
+    """``det / (F_uu F_vv)`` of a Hessian, clipped to [0, 1]; 0 where it is
+    not positive in both parameters."""
+    pos = (huu > 0) & (hvv > 0)
+    den = np.where(pos, huu * hvv, 1.0)
+    return np.where(pos, np.clip((huu * hvv - huv * huv) / den, 0.0, 1.0), 0.0)
+
+
+def _nearest_node(mesh, e, u):
+    """Per point ``(e, u)``: the share ``g = 1 - a / BLEND`` (clipped to
+    [0, 1]; ``a`` the distance in elements to the element's nearer node),
+    ``dg/du``, and whether an element lies beyond that node."""
+    a = np.minimum(u, 1.0 - u)
+    g = 1.0 - a / BLEND
+    dg = np.where((g > 0) & (g < 1), np.where(u < 0.5, -1.0, 1.0) / BLEND, 0.0)
+    ne = mesh.nodes.shape[0]
+    nb = e + np.where(u < 0.5, -1, 1)
+    beyond = np.ones(e.size, bool) if arclength_period(mesh) is not None \
+        else (nb >= 0) & (nb < ne)
+    return np.clip(g, 0.0, 1.0), dg, beyond
+
+
+def _fold_reading(mesh, r, mn, X1, X2, Y1, Y2):
+    """Adds to the minima ``mn`` the ``sin^2 beta`` their weight reads,
+    ``weigh_sin2``, and which second derivatives it was read from,
+    ``reading`` ``(m, 2)`` (per strand: :data:`BLENDED`, :data:`OWN`,
+    :data:`ACROSS`).
+
+    An interior minimum vanishes at a fold of the distance, where its own
+    elements' Hessian is singular.  Within :data:`BLEND` of a node the
+    blended Hessian (:func:`_second`) need not be: measured in the
+    frictional plectoneme at 1.95 turns, a minimum a tenth of an element
+    from a node of both strands had ``sin^2 beta`` 7 times the threshold's
+    by the blended second derivatives and 1e-4 of it by its own; it
+    vanished with weight 1 and force 41.8, and every damped step failed
+    (residual 0.016 -> 66).  So the weight also reads the Hessian of the
+    elements' own second derivatives, and near a node the one with the
+    neighbour's second derivative at that node (as if the minimum had
+    crossed it: an indefinite one there reads 0, so a minimum that would
+    vanish on crossing fades before it), plus ``1 - g`` (:func:`_nearest_node`:
+    0 at the node, 1 from :data:`BLEND` away, where it counts no more).  At
+    the node the readings from either element are the same set, so their
+    least is continuous as the minimum crosses it, and it is the reading of
+    a minimum held on the node (``g = 1``).  That least, divided by
+    :data:`FOLD_SHARE`, replaces the blended ``sin^2 beta`` where it is
+    smaller."""
+    m = mn["e"].size
+    D = mn["D"].T
+    gx, _, bx = _nearest_node(mesh, mn["e"], mn["u"])
+    gy, _, by = _nearest_node(mesh, mn["f"], mn["v"])
+    across = np.full(m, ACROSS)
+    X2n = _second(mesh, r, mn["e"], mn["u"], across)[0].T
+    Y2n = _second(mesh, r, mn["f"], mn["v"], across)[0].T
+    cand = [_psd_sin2(*_hessian(D, X1, X2, Y1, Y2))]
+    px, py = np.where(bx & (gx > 0), 1.0 - gx, np.inf), np.where(by & (gy > 0), 1.0 - gy, np.inf)
+    cand.append(_psd_sin2(*_hessian(D, X1, X2n, Y1, Y2)) + px)
+    cand.append(_psd_sin2(*_hessian(D, X1, X2, Y1, Y2n)) + py)
+    cand.append(_psd_sin2(*_hessian(D, X1, X2n, Y1, Y2n)) + px + py)
+    cand = np.array(cand)
+    j = np.argmin(cand, axis=0)
+    fold = cand[j, np.arange(m)] / FOLD_SHARE
+    use = fold < mn["sin2"]
+    mn["weigh_sin2"] = np.where(use, fold, mn["sin2"])
+    sides = np.array([[OWN, OWN], [ACROSS, OWN], [OWN, ACROSS], [ACROSS, ACROSS]])[j]
+    mn["reading"] = np.where(use[:, None], sides, BLENDED)
 
 
 #: the second derivatives that weigh a minimum blend across a node within
 #: this fraction of an element of it (:func:`_second`)
 BLEND = 0.25
+#: which second derivatives :func:`_second` gives: blended across the
+#: nodes, the element's own, or the neighbour's at the nearer node
+BLENDED, OWN, ACROSS = 0, 1, 2
 #: third derivatives of the cubic Lagrange shape functions (nodes 0, 1, 1/3, 2/3)
 _D3N = np.array([-27.0, 27.0, 81.0, -81.0])
 #: second xi-derivatives of the cubic Lagrange shape functions at xi = 0 and 1
 _D2N0, _D2N1 = shape_functions(0.0)[2], shape_functions(1.0)[2]
 
 
-def _second(mesh, r, e, u):
+def _second(mesh, r, e, u, reading=None):
     """The second xi-derivative ``X''`` of the curve at ``(e, u)`` made
     continuous across the nodes: the element's own, plus a share ``t`` of
     the jump to the neighbour's at a node (in arclength units, ``X'' /
@@ -595,7 +676,10 @@ def _second(mesh, r, e, u):
     the element's own.  Linear in the positions: returns ``X''`` and
     ``dX''/du`` ``(m, 3)``, the coefficients of ``X''`` on the element's
     nodes ``(m, 4)`` and on its neighbours' ``(m, 8)`` (the element before,
-    then after), and those nodes ``(m, 8)``."""
+    then after), and those nodes ``(m, 8)``.  ``reading`` ``(m,)``
+    (optional, default :data:`BLENDED`): :data:`OWN`, the element's own
+    ``X''``; :data:`ACROSS`, the neighbour's at the element's nearer node
+    (constant in ``u``; the element's own where there is no neighbour)."""
     ne, vt = mesh.nodes.shape[0], mesh.vertices
     closed = arclength_period(mesh) is not None
     m = e.size
@@ -612,16 +696,50 @@ def _second(mesh, r, e, u):
         ok = np.ones(m, bool) if closed else (nb >= 0) & (nb < ne)
         nb = np.mod(nb, ne) if closed else np.where(ok, nb, e)
         ratio = (he / (vt[nb + 1] - vt[nb])) ** 2
+        if reading is not None:
+            near = (u < 0.5) if step == -1 else (u >= 0.5)
+            t = np.where(reading == OWN, 0.0, np.where(reading == ACROSS, near * 1.0, t))
+            dt = np.where(reading == BLENDED, dt, 0.0)
         t, dt = np.where(ok, t, 0.0), np.where(ok, dt, 0.0)
         a -= t[:, None] * own
         au -= dt[:, None] * own
         b[:, 4 * j:4 * j + 4] = (t * ratio)[:, None] * theirs
         bu[:, 4 * j:4 * j + 4] = (dt * ratio)[:, None] * theirs
         nodes[:, 4 * j:4 * j + 4] = mesh.nodes[nb]
+    if reading is not None:               # across: the neighbour's alone
+        gone = (reading == ACROSS) & (np.abs(b).sum(axis=1) > 0)
+        a[gone], au[gone] = 0.0, 0.0
     re, rn = r[mesh.nodes[e]], r[nodes]
     X2 = np.einsum("mk,mkc->mc", a, re) + np.einsum("mk,mkc->mc", b, rn)
     X2u = np.einsum("mk,mkc->mc", au, re) + np.einsum("mk,mkc->mc", bu, rn)
     return X2, X2u, a, b, nodes
+
+
+def _canonical(mesh, e, f, u, v, s, s_bar):
+    """Indices of the minima to keep of one found twice on a node: a
+    parameter held on a node is found from the element pairs on either side
+    of it, at the same place to round-off.  At a kink of the C0 centreline
+    the two differ (``X'`` jumps there, and with it the Hessian that weighs
+    the minimum), and which one the clustering of :func:`_one_per_crossing`
+    kept flipped with round-off (measured: ``sin^2 beta`` 0.40 against 0.74
+    between states 1e-6 apart).  The one on the element after the node is
+    kept: a result held at ``u = 1`` (or ``v = 1``) of an element with a
+    next one is dropped where a result within 1e-6 of an element in both
+    arclengths is not so held."""
+    n = e.size
+    ne = mesh.nodes.shape[0]
+    after = (lambda x: np.ones(x.size, bool)) if arclength_period(mesh) is not None \
+        else (lambda x: x + 1 < ne)
+    second = ((u >= 1.0) & after(e)) | ((v >= 1.0) & after(f))
+    if not second.any() or second.all():
+        return np.arange(n)
+    tol = 1e-6 * float(np.mean(np.diff(mesh.vertices)))
+    first = np.flatnonzero(~second)
+    d = cKDTree(np.c_[s[first], s_bar[first]]).query(np.c_[s[second], s_bar[second]],
+                                                     p=np.inf)[0]
+    keep = np.ones(n, bool)
+    keep[np.flatnonzero(second)[d <= tol]] = False
+    return np.flatnonzero(keep)
 
 
 def _one_per_crossing(s, s_bar, dist, within, held=None):
@@ -832,7 +950,7 @@ def _weigh(mesh, r, mn, radius, threshold, exclusion):
     # place moves by delta / sin^2 beta for a change delta of the state;
     # a minimum with no local factor needs no probes (line contacts: most)
     sb2 = sin_min ** 2
-    w_beta, slope_beta = _smoothstep(mn["sin2"] / sb2)
+    w_beta, slope_beta = _smoothstep(mn["weigh_sin2"] / sb2)
     todo = np.flatnonzero(w_beta > 0)
     rise = np.full(m, np.inf)
     dofs, dq, dp = np.zeros((m, 24), np.int64), np.zeros((m, 24)), np.zeros((m, 2))
@@ -927,7 +1045,7 @@ def _collect(mesh, r, p):
                          p["u_free"], p["v_free"], p["beta"], p["length"], p["weight"],
                          WeightSlope(p["weight_slope"], p["weight_slope_l"],
                                      p["weight_slope_beta"], p["probe_dofs"], p["probe_dq"],
-                                     p["probe_dp"]))
+                                     p["probe_dp"], p["reading"]))
 
 
 def _outer(a, c):
@@ -937,18 +1055,24 @@ def _outer(a, c):
     return (a[:, :, None] * c[:, None, :]).reshape(a.shape[0], -1)
 
 
-def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
+def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S, reading=None):
     """``d(sin^2 beta)/dq`` of the minima at ``(e, u)``, ``(f, v)`` (the
     per-pair arrays of :func:`crossing_work`), ``sin^2 beta = det F_pp /
     (F_uu F_vv)`` with the second derivatives continuous across nodes
     (:func:`_second`; the node-held parameter included), through the
     positions at fixed parameters and the minimum's motion ``dp/dq = -S``.
     Returns the derivative on the pair's dofs ``(m, 24)``, on the dofs of
-    the elements beside its two ``(m, 48)``, and those dofs."""
+    the elements beside its two ``(m, 48)``, and those dofs.
+
+    ``reading`` ``(m, 2)``: where not :data:`BLENDED`, the derivative of the
+    fold reading the weight took instead (:func:`_fold_reading`): the
+    Hessian of those second derivatives, plus ``1 - g`` per strand read
+    across a node, over :data:`FOLD_SHARE`."""
     m = D.shape[0]
     z = np.zeros((m, 4))
-    X2c, X2u, ax, bx, nx = _second(mesh, r, e, u)
-    Y2c, Y2v, ay, by, ny = _second(mesh, r, f, v)
+    rx, ry = (None, None) if reading is None else (reading[:, 0], reading[:, 1])
+    X2c, X2u, ax, bx, nx = _second(mesh, r, e, u, rx)
+    Y2c, Y2v, ay, by, ny = _second(mesh, r, f, v, ry)
     dot = lambda a, b: _dot(a.T, b.T)                                 # noqa: E731
     Fuu, Fvv, Fuv = _hessian(D.T, X1.T, X2c.T, Y1.T, Y2c.T)
     aX2 = np.concatenate([ax, z], axis=1)
@@ -972,6 +1096,8 @@ def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
     ddet = dFuu * Fvv[:, None] + Fuu[:, None] * dFvv - 2 * Fuv[:, None] * dFuv
     dden = dFuu * Fvv[:, None] + Fuu[:, None] * dFvv
     inside = (det > 0) & (det < den)                        # not clipped to [0, 1]
+    blended = np.ones(m, bool) if reading is None else rx == BLENDED
+    inside &= blended | ((Fuu > 0) & (Fvv > 0))              # _psd_sin2
     own = np.where(inside[:, None], ddet / den[:, None] - (det / den ** 2)[:, None] * dden, 0.0)
     # the neighbours enter F_uu (X side) and F_vv (Y side) through D.X''
     # only: d sin^2 = (1 - sin^2) (F_vv dF_uu + F_uu dF_vv) / den
@@ -979,6 +1105,13 @@ def _dsin2(mesh, r, e, f, u, v, D, X1, X2, Y1, Y2, aD, aX1, aY1, S):
     beside = np.concatenate([(c * Fvv)[:, None] * _outer(bx, D),
                              -(c * Fuu)[:, None] * _outer(by, D)], axis=1)
     dofs = (6 * np.concatenate([nx, ny], axis=1)[:, :, None] + np.arange(3)).reshape(m, 48)
+    if reading is not None and not blended.all():
+        # a strand read across a node adds 1 - g(p): d/dq = g'(p) S
+        for k, (el, p) in enumerate(((e, u), (f, v))):
+            dg = _nearest_node(mesh, el, p)[1] * (reading[:, k] == ACROSS)
+            own = own + dg[:, None] * S[:, k]
+        scale = np.where(blended, 1.0, 1.0 / FOLD_SHARE)[:, None]
+        own, beside = own * scale, beside * scale
     return own, beside, dofs
 
 
@@ -1097,7 +1230,8 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
             dw = ws * (-np.einsum("mk,mkq->mq", ps.probe_dp[i], S[i]) - lq[i]) + wl * lq[i]
             own, beside, bdofs = _dsin2(mesh, r, pairs.e[i], pairs.f[i], pairs.u[i], pairs.v[i],
                                         D[i], X1[i], X2[i], Y1[i], Y2[i], aD[i], aX1[i],
-                                        aY1[i], S[i])
+                                        aY1[i], S[i],
+                                        None if ps.reading is None else ps.reading[i])
             dw = dw + wb * own
             # w f_N(d) with d = 2 eps + w offset - l: the weight's
             # derivative enters through the factor and through the gap
