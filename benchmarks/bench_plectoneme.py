@@ -39,6 +39,7 @@ import argparse
 import datetime
 import json
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -211,6 +212,28 @@ def report(runs, path, command, png):
     Path(path).write_text("\n".join(lines) + "\n")
 
 
+#: a step line of a run's printout (``run``): turns, x_end, torque, contacts
+_STEP = re.compile(r"^\s+\d+:\s+([-\d.]+) turns\s+x_end=([-\d.]+)\s+M=([-\d.]+)\s+"
+                   r"contacts=\s*(\d+)")
+#: the heading line of a run's printout
+_HEAD = re.compile(r"^(\d+) elements, gamma_T = ([-\d.eE+]+)")
+
+
+def runs_from_logs(paths):
+    """The records of the runs printed to the files ``paths`` (this script's
+    output): one run per heading line, its step lines as records."""
+    runs = []
+    for path in paths:
+        for line in Path(path).read_text().splitlines():
+            head, step = _HEAD.match(line), _STEP.match(line)
+            if head:
+                runs.append(dict(n_elements=int(head[1]), gamma_T=float(head[2]), records=[]))
+            elif step and runs:
+                runs[-1]["records"].append(dict(turns=float(step[1]), x_end=float(step[2]),
+                                                torque=float(step[3]), contacts=int(step[4])))
+    return [r for r in runs if r["records"]]
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--elements", type=int, nargs="+", default=[100, 200])
@@ -224,8 +247,17 @@ def main(argv=None):
     p.add_argument("--contact", action="append", default=[], metavar="KEY=VALUE",
                    help="another contact option (value as JSON), e.g. curve=\"smooth\"")
     p.add_argument("--out", default=str(HERE))
+    p.add_argument("--plot-logs", nargs="+", metavar="LOG",
+                   help="no runs: plot the runs printed to these files (this script's "
+                        "output, e.g. runs made side by side) to OUT/plectoneme.png")
     a = p.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)            # before the runs, not after the first
+    if a.plot_logs:
+        runs = runs_from_logs(a.plot_logs)
+        if not runs:
+            p.error(f"no run found in {a.plot_logs}")
+        print(plot(runs, os.path.join(a.out, "plectoneme.png")))
+        return runs
     options, contact = {}, {}
     for target, given in ((options, a.option), (contact, a.contact)):
         for kv in given:

@@ -19,3 +19,19 @@ def test_a_run_stops_at_its_budget_and_reports_what_it_reached():
     assert out["turns"] == turns[-1] < 10.0
     assert len(out["result"].steps) == len(out["records"])
     assert out["flow_steps"] == 0
+
+
+def test_runs_printed_side_by_side_are_plotted_from_their_logs(tmp_path, capsys):
+    """``--plot-logs``: the runs a printout holds (heading and step lines as
+    ``run`` prints them) are read back as records, the figure is written."""
+    out = bench.run(20, 0.3, turns=10.0, budget=1.0)
+    printed = capsys.readouterr().out
+    log = tmp_path / "run.log"
+    log.write_text("20 elements, gamma_T = 0.3\n" + printed + "  -> done\n")
+    runs = bench.main(["--plot-logs", str(log), "--out", str(tmp_path)])
+    assert len(runs) == 1 and (runs[0]["n_elements"], runs[0]["gamma_T"]) == (20, 0.3)
+    got = [(q["turns"], q["x_end"], q["torque"], q["contacts"]) for q in runs[0]["records"]]
+    want = [(round(q["turns"], 3), round(q["x_end"], 4), round(q["torque"], 4), q["contacts"])
+            for q in out["records"]]
+    assert got == want and len(got) > 1
+    assert (tmp_path / "plectoneme.png").stat().st_size > 0
