@@ -74,6 +74,13 @@ EASY = 4
 #: large static out-of-balance, 17.7 -> 13.2 -> 2.5 -> 1.8e-2 -> 2e-6 -> 0)
 #: held the plectoneme's dt at 7.6e-6 for 300 steps, the load frozen
 STALL = 8
+#: after a failure at a freshly doubled dt, the easy steps dt waits for
+#: before it doubles again double, up to this many (STALL's count: a dt
+#: doubles after that many accepted steps anyway); a success at a doubled
+#: dt sets them back to two.  In the frictional plectoneme at rest at 1.97
+#: turns Newton failed at twice the dt it had just managed, about one try
+#: in three, for 200 steps
+EASY_WAIT_MAX = 8
 #: the damped phase gives up when dt falls below this fraction of its first value
 DT_FLOOR = 1e-8
 #: after a push off a saddle, no polish until the flow is this many push
@@ -389,6 +396,7 @@ class PseudoDynamics:
         opts, p = self.opts, self.problem
         dt = self.dt0 if self.dt is None else self.dt
         steps = tries = easy = at_dt = 0
+        wait, grew = 2, False                # easy steps before dt doubles; dt just doubled
         quasi = 0.0                          # load fraction of the quasi-static ramp
         first = True
         why = "no damped step"
@@ -404,6 +412,9 @@ class PseudoDynamics:
             if not ok:
                 why = rep.reason
                 easy = at_dt = 0
+                if grew:                         # the doubled dt failed: wait longer
+                    wait = min(2 * wait, EASY_WAIT_MAX)
+                grew = False
                 dt *= 0.5
                 quasi *= 0.5
                 if dt < DT_FLOOR * self.dt0:
@@ -426,9 +437,11 @@ class PseudoDynamics:
             its = (rep.newton_total or rep.iterations) / (rep.uzawa + 1)
             easy = easy + 1 if its <= EASY else 0
             at_dt += 1
-            if easy >= 2 or at_dt >= STALL:      # two easy steps, or a stalled dt
+            if grew:                             # the doubled dt worked
+                wait, grew = 2, False
+            if easy >= wait or at_dt >= STALL:   # enough easy steps, or a stalled dt
                 dt = min(2.0 * dt, DT_CEIL * self.dt0)
-                at_dt = 0
+                at_dt, grew = 0, True
             # at rest while the load still ramps: the steps are load steps
             # (the viscous force a small part of the out-of-balance that
             # Newton met: QUASI), and the load moves by a

@@ -86,6 +86,44 @@ def test_damped_phases_end_on_the_static_equilibrium():
         assert st.flow_steps == 0                      # no gradient flow
 
 
+def _refused_above(monkeypatch, cap, wait_max):
+    """The cantilever's damped phase (Newton held to 3 iterations, first
+    ``dt`` 1e-4, 200 damped steps at most) with every damped step at a
+    ``dt`` above ``cap`` times the first refused, and the controller's
+    longest wait ``wait_max`` easy steps: (accepted, refused) tries."""
+    from skfem_rod import dynamics
+    monkeypatch.setattr(dynamics, "EASY_WAIT_MAX", wait_max)
+    damped = dynamics.PseudoDynamics.damped
+    count = {"accepted": 0, "refused": 0}
+
+    def refusing(self, r, R, t, t_new, dt):
+        out = damped(self, r, R, t, t_new, dt)
+        if dt > cap * self.dt0:
+            count["refused"] += 1
+            out[2].reason = "refused by the test"
+            return r, R, out[2], False, out[4]
+        count["accepted"] += bool(out[3])
+        return out
+    monkeypatch.setattr(dynamics.PseudoDynamics, "damped", refusing)
+    res = cantilever().solve(1, dynamics=True, max_iterations=3, dynamics_dt=1e-4,
+                             max_damped_steps=200)
+    assert not res.converged and "no equilibrium after 200 damped steps" in res.message
+    return count["accepted"], count["refused"]
+
+
+def test_a_refused_doubling_makes_dt_wait_longer(monkeypatch):
+    """Where every doubling of ``dt`` beyond some size fails (as in the
+    frictional plectoneme at rest at 1.97 turns, where Newton failed at
+    twice the ``dt`` it had just managed, about once in three tries), the
+    easy steps ``dt`` waits for before it doubles again double after each
+    refusal at a freshly doubled ``dt``, up to ``EASY_WAIT_MAX`` = 8: a
+    refused try for every 8 accepted steps, not for every 2."""
+    accepted, refused = _refused_above(monkeypatch, 2.0, 8)
+    assert accepted == 200 and refused <= accepted / 8 + 5
+    accepted, refused = _refused_above(monkeypatch, 2.0, 2)      # the rule before
+    assert accepted == 200 and refused >= accepted / 3
+
+
 @pytest.fixture(scope="module")
 def twisted():
     """Contact-free twisted rod under tension (L = 10 lambda, 16 elements,
