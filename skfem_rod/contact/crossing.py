@@ -634,24 +634,30 @@ def _fold_reading(mesh, r, mn, X1, X2, Y1, Y2):
     :data:`FOLD_SHARE`, replaces the blended ``sin^2 beta`` where it is
     smaller."""
     m = mn["e"].size
-    D = mn["D"].T
+    mn["weigh_sin2"], mn["reading"] = mn["sin2"].copy(), np.full((m, 2), BLENDED)
     gx, _, bx = _nearest_node(mesh, mn["e"], mn["u"])
     gy, _, by = _nearest_node(mesh, mn["f"], mn["v"])
-    across = np.full(m, ACROSS)
-    X2n = _second(mesh, r, mn["e"], mn["u"], across)[0].T
-    Y2n = _second(mesh, r, mn["f"], mn["v"], across)[0].T
-    cand = [_psd_sin2(*_hessian(D, X1, X2, Y1, Y2))]
-    px, py = np.where(bx & (gx > 0), 1.0 - gx, np.inf), np.where(by & (gy > 0), 1.0 - gy, np.inf)
-    cand.append(_psd_sin2(*_hessian(D, X1, X2n, Y1, Y2)) + px)
-    cand.append(_psd_sin2(*_hessian(D, X1, X2, Y1, Y2n)) + py)
-    cand.append(_psd_sin2(*_hessian(D, X1, X2n, Y1, Y2n)) + px + py)
-    cand = np.array(cand)
+    # farther than BLEND from the nodes the blended second derivatives are
+    # the elements' own, and the reading over FOLD_SHARE is not smaller
+    k = np.flatnonzero((gx > 0) | (gy > 0))
+    if k.size == 0:
+        return
+    D, X1, X2, Y1, Y2 = (a[:, k] for a in (mn["D"].T, X1, X2, Y1, Y2))
+    across = np.full(k.size, ACROSS)
+    X2n = _second(mesh, r, mn["e"][k], mn["u"][k], across)[0].T
+    Y2n = _second(mesh, r, mn["f"][k], mn["v"][k], across)[0].T
+    px = np.where(bx[k] & (gx[k] > 0), 1.0 - gx[k], np.inf)
+    py = np.where(by[k] & (gy[k] > 0), 1.0 - gy[k], np.inf)
+    cand = np.array([_psd_sin2(*_hessian(D, X1, X2, Y1, Y2)),
+                     _psd_sin2(*_hessian(D, X1, X2n, Y1, Y2)) + px,
+                     _psd_sin2(*_hessian(D, X1, X2, Y1, Y2n)) + py,
+                     _psd_sin2(*_hessian(D, X1, X2n, Y1, Y2n)) + px + py])
     j = np.argmin(cand, axis=0)
-    fold = cand[j, np.arange(m)] / FOLD_SHARE
-    use = fold < mn["sin2"]
-    mn["weigh_sin2"] = np.where(use, fold, mn["sin2"])
+    fold = cand[j, np.arange(k.size)] / FOLD_SHARE
+    use = fold < mn["sin2"][k]
     sides = np.array([[OWN, OWN], [ACROSS, OWN], [OWN, ACROSS], [ACROSS, ACROSS]])[j]
-    mn["reading"] = np.where(use[:, None], sides, BLENDED)
+    mn["weigh_sin2"][k[use]] = fold[use]
+    mn["reading"][k[use]] = sides[use]
 
 
 #: the second derivatives that weigh a minimum blend across a node within
