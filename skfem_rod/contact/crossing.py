@@ -620,8 +620,8 @@ def _fold_reading(mesh, r, mn, X1, X2, Y1, Y2):
     blended Hessian (:func:`_second`) need not be: measured in the
     frictional plectoneme at 1.95 turns, a minimum a tenth of an element
     from a node of both strands had ``sin^2 beta`` 7 times the threshold's
-    by the blended second derivatives and 1e-4 of it by its own; it
-    vanished with weight 1 and force 41.8, and every damped step failed
+    by the blended second derivatives and 6e-6 of it by its own; it
+    sat at the fold with weight 1 and force 41.8, and every damped step failed
     (residual 0.016 -> 66).  So the weight also reads the Hessian of the
     elements' own second derivatives, and near a node the one with the
     neighbour's second derivative at that node (as if the minimum had
