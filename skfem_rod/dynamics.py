@@ -60,7 +60,7 @@ import numpy as np
 from .augmented import step as al_step
 from .newton import newton
 from .problem import clearance_ok
-from .relax import metric
+from .relax import metric, polish
 
 __all__ = ["DynamicsLog", "PseudoDynamics", "follow"]
 
@@ -192,6 +192,20 @@ def viscous_inner(problem, W, c, r_ref, R_ref):
     return inner
 
 
+def climbs(g0, g1, dy, free):
+    """Whether a damped step ``dy`` at a held load climbs: the energy change
+    estimated by the trapezoid rule on the static residuals (the energy's
+    gradients) ``g0`` at its start and ``g1`` at its end is above half its
+    viscous work ``|g1 . dy|`` (the gradient flow's descent check,
+    :mod:`skfem_rod.relax`).  A long implicit step of the non-convex
+    problem next to a saddle can converge back onto it (Newton finds any
+    stationary point); along an unstable mode of curvature ``-k`` and
+    metric ``q`` this rejects ``dt > 3 q / k`` from next to the saddle
+    (tests/test_round_off_floor.py)."""
+    down = 0.5 * float(np.dot((g0 + g1)[free], dy[free]))
+    return down > 0.5 * abs(float(np.dot(g1[free], dy[free])))
+
+
 class PseudoDynamics:
     """The damped phases of one solve (module doc): the metric, the step
     size that worked last, the log.  ``stepper`` is the
@@ -210,6 +224,9 @@ class PseudoDynamics:
         self.away_from = None
         self.dt_saddle = np.inf
         self.pushes = 0
+        #: static residual at the end of the last accepted damped step that
+        #: was checked for descent (:meth:`damped`), else None
+        self.gradient = None
         #: a push off a saddle with friction on in this load step (the
         #: frictionless test is then only sufficient: :meth:`unstable_at`)
         self.pushed_with_friction = False
@@ -238,12 +255,16 @@ class PseudoDynamics:
         if saved is not None:
             self.problem.multipliers = saved
 
-    def damped(self, r, R, t, t_new, dt):
+    def damped(self, r, R, t, t_new, dt, descent=None):
         """One implicit Euler step ``t -> t_new`` with viscosity ``1 / dt``
         from ``(r, R)``.  Returns ``(r, R, report, ok, peak)``, ``peak`` the
         largest residual norm of the Newton iterations of all its Uzawa
         passes (the out-of-balance the step met: the report holds the last
-        pass's only); a rejected step leaves the multipliers as they were."""
+        pass's only); a rejected step leaves the multipliers as they were.
+        ``descent``: the static residual at ``(r, R)`` (the energy's
+        gradient, load held): the step is also rejected where it climbs
+        (:func:`climbs`); the accepted step's static residual is then
+        :attr:`gradient`."""
         p = self.problem
         lam, lam_new = self.lam_of(t), self.lam_of(t_new)
         saved = self.save()
@@ -268,18 +289,31 @@ class PseudoDynamics:
         ok = rep.converged and clearance_ok(p.rod, r, r1)
         if rep.converged and not ok:
             rep.reason = "strands moved by more than half their clearance (possible passage)"
+        self.gradient = None
+        if ok and descent is not None:
+            dy = p.increment(r1, R1, r, R)
+            g1 = rep.evaluation.residual - p.to_basis(self.W * p.to_spatial(dy)) / dt
+            if climbs(descent, g1, dy, p.free):
+                ok, rep.reason = False, "the damped step climbs (the energy would rise)"
+            else:
+                self.gradient = g1
         if not ok:
             self.restore(saved)
         self.log.add("damped", rep, ok, t_new, p)
         return r1, R1, rep, ok, max(peaks, default=0.0)
 
-    def polish(self, r, R, t):
+    def polish(self, r, R, t, dt):
         """Newton + AL with the viscous term off at ``lam(t)`` from a damped
-        state: the equilibrium that is recorded.  Returns ``(r, R, report)``
-        or None."""
+        state (the last damped step's ``dt``): the equilibrium that is
+        recorded.  Each AL pass is :func:`skfem_rod.relax.polish`: Newton,
+        and where it does not converge without contact (a very soft mode),
+        proximal steps from viscosity ``1 / dt`` down.  Returns ``(r, R, report)`` or None."""
         p, rod = self.problem, self.problem.rod
         saved = self.save()
-        r1, R1, rep = al_step(p, r, R, self.lam_of(t), None, self.polish_opts)
+
+        def inner(r0, R0, lam0, opts, prescribed=None):
+            return polish(p, self.W, 1.0 / dt, r0, R0, lam0, opts, prescribed)
+        r1, R1, rep = al_step(p, r, R, self.lam_of(t), None, self.polish_opts, inner=inner)
         # no clearance cap here: plies in contact slide along each other in
         # a polish; a passage is caught by the AL loop's true-distance check
         ok = rep.converged and np.abs(r1 - r).max() <= POLISH_REACH * rod.length
@@ -376,6 +410,19 @@ class PseudoDynamics:
         self.dt_saddle = np.inf
         self.log.damped_per_record.append(steps)
 
+    def capped(self, dt):
+        """``dt`` within the bound that keeps a damped step next to the last
+        saddle convex along its unstable mode (:meth:`push`).  Without
+        contact the bound is not applied: there the damped steps next to a
+        saddle are checked for descent instead (:func:`climbs`, as the
+        gradient flow's), which bounds ``dt`` by the curvature along the
+        way rather than by the saddle's.  Held at the saddle's bound, the
+        localized writhing case's first damped phase (the compressed
+        straight rod, 21 unstable modes, coarsening into one loop) took
+        836 damped steps; with contact the check is poor where the active
+        set changes (:mod:`skfem_rod.relax`), and the bound stays."""
+        return dt if self.problem.contact is None else min(dt, self.dt_saddle)
+
     def near_saddle(self, r):
         """True while ``r`` is within the distance of the last saddle that
         the flow must leave before a polish."""
@@ -401,6 +448,7 @@ class PseudoDynamics:
         first = True
         why = "no damped step"
         next_polish = np.inf                 # viscous force that allows a polish
+        g = None                             # static residual at (r, R), when known
         while steps < opts.max_damped_steps:
             if self.S.deadline.passed():
                 return None, (f"at pseudo-time {t:.6g} after {steps} damped steps: "
@@ -408,7 +456,14 @@ class PseudoDynamics:
             tries += 1
             h = h_nominal * min(1.0, max(dt / (LOAD_RAMP * self.dt0), quasi))
             t_new = t_target if t + h >= t_target - 1e-14 else t + h
-            r1, R1, rep, ok, peak = self.damped(r, R, t, t_new, dt)
+            descent = None
+            if self.away_from is not None and p.contact is None and t >= t_target - 1e-14:
+                # next to a saddle without contact: the descent check
+                # stands in for the saddle's dt bound (:meth:`capped`)
+                if g is None:
+                    g = p.evaluate(r, R, self.lam_of(t), tangent=False).residual
+                descent = g
+            r1, R1, rep, ok, peak = self.damped(r, R, t, t_new, dt, descent=descent)
             if not ok:
                 why = rep.reason
                 easy = at_dt = 0
@@ -431,7 +486,7 @@ class PseudoDynamics:
                 self.dt = 2.0 * dt               # the next phase starts there
             first = False
             p.commit(r1, R1, ev)                 # friction slips of the next step start here
-            r, R, t = r1, R1, t_new
+            r, R, t, g = r1, R1, t_new, self.gradient
             # Newton iterations per pass of the AL loop: Uzawa passes are the
             # contact's work, not a sign that the step is too long
             its = (rep.newton_total or rep.iterations) / (rep.uzawa + 1)
@@ -455,13 +510,13 @@ class PseudoDynamics:
             else:
                 quasi = 0.0
             near = self.near_saddle(r)
-            dt = min(dt, self.dt_saddle)
+            dt = self.capped(dt)
             if near and vis <= opts.dynamics_tol and t >= t_target - 1e-14:
                 if self.unstable_at(r, R, t):
                     if not self.came_back(r):
                         # at rest next to the saddle (the push was too small): again
                         r, R = self.push(r, R, self.lam_of(t))
-                        dt = min(dt, self.dt_saddle)
+                        dt, g = self.capped(dt), None
                         continue
                     self.held = True
                     self.S.result.log.append(
@@ -477,14 +532,14 @@ class PseudoDynamics:
                 # went along it into the contact: Newton residuals 20-110)
             if t >= t_target - 1e-14 and vis <= min(opts.dynamics_tol, next_polish) \
                     and not near:
-                done = self.polish(r, R, t)
+                done = self.polish(r, R, t, dt)
                 if done is not None:
                     r2, R2, rep2 = done
                     return r2, R2, t, rep2, steps
                 next_polish = 0.1 * vis          # try again once it moved on
                 if self.unstable:                # it found a saddle: leave it
                     r, R = self.push(self.saddle[0], self.saddle[1], self.lam_of(t))
-                    next_polish, dt = np.inf, min(dt, self.dt_saddle)
+                    next_polish, dt, g = np.inf, self.capped(dt), None
         return None, (f"no equilibrium after {steps} damped steps (max_damped_steps="
                       f"{opts.max_damped_steps}) from pseudo-time {t:.6g}")
 

@@ -9,7 +9,10 @@ The loop, in plain sight::
         converged when |G_free| <= rtol * force scale (or the update is
             below increment_tol and did not raise the residual more than
             10 times), the prescribed motions are all applied and
-            (continuation) the arclength equation holds
+            (continuation) the arclength equation holds; where the residual
+            jumps up from its least, no update is admissible or the
+            iterations run out: the least iterate, if its residual is at
+            its round-off floor (at_floor), else failure
         solve K dy = -G - K p   (p: what is left of the prescribed motion)
         continuation: the bordered system adds dlam (two back substitutions)
         safeguard: scale dy so that no spin exceeds max_spin_update; halve
@@ -23,6 +26,7 @@ the free dofs and the forces the supports take up, never a load that acts
 on a supported dof (that one cannot decide convergence).
 """
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,9 +34,19 @@ from .kinematics import ElementRotationError
 # Report, the position correction and its threshold live in problem.py
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
+from .problem import FLOOR_GATE
 from .problem import Increment, State, settled, spin_cap, start, update_size
 from .problem import failed as _fail
 
+
+#: Newton returns its least iterate, if at the round-off floor
+#: (:func:`at_floor`), once the residual rose above this multiple of it: an
+#: update that round-off decided (along a very soft mode the residual
+#: jumps by 1e4 and more).  Not less: at a floor that the residual
+#: fluctuates about while the updates still converge (a cantilever with
+#: EA = 1e8 EI/L^2: 6.5e-6 -> 1.6e-5), the least iterate is not yet the
+#: solution
+FLOOR_JUMP = 10.0
 
 #: the slope search shortens an update whose energy slope at the trial is
 #: above this fraction of the (negative) slope at the start, reversed
@@ -158,17 +172,29 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
     remaining, ev, why = start(problem, r, R, lam, prescribed)
     if ev is None:
         return _fail(r, R, lam, history, 0, why)
+    best = None             # the iterate of least residual, motions applied: Iterate
+    checked = None          # the last one at_floor turned down
     for it in range(opts.max_iterations + 1):
         rn = problem.residual_norm(ev)
         scale = problem.force_scale(ev)
         history.append(rn)
         if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
-            return _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
+            return (best is not checked and at_floor(problem, best, history)) or \
+                _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
         bordered_ok = border is None or \
             abs(border.residual()) <= 1e-8 * max(abs(border.target), 1e-300)
         if settled(history, last_update, opts.rtol * scale, opts.increment_tol) \
                 and not np.any(remaining) and bordered_ok:
             return r, R, lam, Report(True, iterations=it, history=history, evaluation=ev)
+        if not np.any(remaining) and bordered_ok:
+            if best is None or rn < best.rn:
+                best = Iterate(rn, r, R, lam, ev)
+            elif rn > FLOOR_JUMP * best.rn and best is not checked:
+                # the residual rose from its least: if that was at its
+                # round-off floor, Newton's updates are round-off amplified
+                done, checked = at_floor(problem, best, history), best
+                if done is not None:
+                    return done
         if it == opts.max_iterations:
             break
         K = ev.tangent
@@ -193,8 +219,9 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         accepted, alpha, why = safeguarded_update(problem, State(r, R, lam), inc, opts,
                                                   bound, rn, slope)
         if accepted is None:
-            return _fail(r, R, lam, history, it + 1,
-                         f"no admissible update after {opts.max_backtracks} halvings: {why}", ev)
+            return (best is not checked and at_floor(problem, best, history)) or \
+                _fail(r, R, lam, history, it + 1,
+                      f"no admissible update after {opts.max_backtracks} halvings: {why}", ev)
         r, R, ev = accepted
         lam = lam + alpha * inc.dl
         if border is not None:
@@ -202,6 +229,42 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         last_update = update_size(problem, alpha * inc.dy)
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
-    return _fail(r, R, lam, history, opts.max_iterations,
-                 f"no convergence in {opts.max_iterations} iterations "
-                 f"(residual {history[-1]:.3e})", ev)
+    return (best is not checked and at_floor(problem, best, history)) or \
+        _fail(r, R, lam, history, opts.max_iterations,
+              f"no convergence in {opts.max_iterations} iterations "
+              f"(residual {history[-1]:.3e})", ev)
+
+
+class Iterate(NamedTuple):
+    """A Newton iterate kept for :func:`at_floor`: its residual norm, state
+    and evaluation."""
+    rn: float
+    r: np.ndarray
+    R: np.ndarray
+    lam: float
+    ev: object
+
+
+def at_floor(problem, best, history):
+    """The :class:`Iterate` ``best`` as the converged state of a Newton
+    solve that cannot go on (its residual jumped up from there, no update
+    was admissible, or the iterations ran out) when its residual is at its
+    round-off floor (:meth:`~skfem_rod.problem.Problem.round_off_floor`,
+    measured only within :data:`~skfem_rod.problem.FLOOR_GATE` times
+    :meth:`~skfem_rod.problem.Problem.floor_estimate`); else None.
+
+    A residual at its floor cannot be told from zero in double precision,
+    and the updates Newton computes from it are round-off amplified by the
+    inverse of the softest stiffness: along a very soft mode (the loop of
+    a localizing helix sliding along a long rod, lowest eigenvalue 1e-13
+    of the stiffest) the residual went 0.07 -> 9e-5 -> 1e-7 -> 0.08 in a
+    3-cycle, the floor there 3e-7 (the force scale 2).  A solve that
+    converges to ``rtol`` never gets here, so this costs nothing where
+    Newton works."""
+    if best is None or best.rn > FLOOR_GATE * problem.floor_estimate(best.r, best.ev):
+        return None
+    floor = problem.round_off_floor(best.r, best.R, best.lam, best.ev)
+    if best.rn > floor:
+        return None
+    return best.r, best.R, best.lam, Report(True, iterations=len(history) - 1,
+                                            history=history, evaluation=best.ev, floor=floor)

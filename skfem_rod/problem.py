@@ -541,6 +541,38 @@ class Problem:
         """Norm of the residual on the free dofs."""
         return float(np.linalg.norm(ev.residual[self.free]))
 
+    def floor_estimate(self, r, ev):
+        """An a-priori size of the residual's round-off floor at the
+        evaluation ``ev`` (with its tangent) of positions ``r``: machine
+        epsilon times the largest coordinate, the largest diagonal entry of
+        the tangent on the free dofs and the square root of their number
+        (a position known to a relative ``eps`` of the largest coordinate
+        gives forces known to ``|K| eps |r|`` per dof).  Newton measures the
+        floor (:meth:`round_off_floor`) only where the residual is within
+        :data:`FLOOR_GATE` times this."""
+        d = ev.tangent.diagonal()[self.free]
+        return (np.finfo(float).eps * float(np.abs(r).max(initial=0.0))
+                * float(np.abs(d).max(initial=0.0)) * np.sqrt(d.size))
+
+    def round_off_floor(self, r, R, lam, ev):
+        """The residual's round-off floor at ``(r, R)``, measured: the norm
+        on the free dofs of the change of the residual (``ev`` at ``(r, R,
+        lam)``) when every position coordinate is rounded at the precision
+        of the largest one (a round trip through a shift of
+        :data:`ROUND_TRIP` times it: ``(r + s) - s``).  In exact arithmetic
+        the two residuals are the same state's; a residual at or below their
+        difference cannot be told from zero in double precision.  Where a
+        rod is long against its elements and axially stiff against its loads
+        (the localized writhing case: ``L = 100``, ``EA = 1e5``, end forces
+        0.4) the floor is 1e-7 of the force scale, above the default
+        ``rtol``; there Newton returns its least iterate at the floor
+        (:func:`skfem_rod.newton.at_floor`, ``Report.floor``) rather than
+        the updates that round-off decides along a soft mode
+        (docs/theory.md section 6)."""
+        s = ROUND_TRIP * max(float(np.abs(r).max(initial=0.0)), self.rod.length)
+        ev_t = self.evaluate((r + s) - s, R, lam, tangent=False)
+        return float(np.linalg.norm((ev_t.residual - ev.residual)[self.free]))
+
     # -- linear solve ------------------------------------------------------
     def factor(self, K, fixed=None):
         """Factorize ``K`` on the free dofs (constrained rows and columns
@@ -750,6 +782,16 @@ def start(problem, r, R, lam, prescribed):
 #: (:func:`settled`)
 SETTLED_GROWTH = 10.0
 
+#: positions are rounded for :meth:`Problem.round_off_floor` by a round trip
+#: through a shift of this multiple of the largest coordinate: every
+#: coordinate comes back rounded at the precision of numbers two to four
+#: times the largest
+ROUND_TRIP = 3.0
+#: Newton measures the round-off floor only where the residual is within
+#: this factor of :meth:`Problem.floor_estimate` (elsewhere the floor
+#: cannot decide, and measuring it costs an evaluation)
+FLOOR_GATE = 10.0
+
 
 def settled(history, last_update, rtol_force, increment_tol):
     """Newton's convergence test on the residual norms ``history`` (the
@@ -823,6 +865,10 @@ class Report:
     #: its residual relative to the force scale (above rtol), else None
     relaxed_residual: float = None
     lowest_eigenvalue: float = None
+    #: the residual was accepted at its round-off floor
+    #: (:meth:`Problem.round_off_floor`, above rtol times the force scale):
+    #: that floor, else None
+    floor: float = None
 
 
 def failed(r, R, lam, history, it, reason, ev=None):

@@ -506,8 +506,13 @@ def test_relaxed_state_without_polish_is_reported(monkeypatch):
         res = cantilever().solve(2, snap="relax")
     assert res.converged, res.message
     assert all(st.flow_steps > 0 and st.relaxed_residual is None for st in res.steps[1:])
-    # the polish fails too: the flow's state is kept and reported
-    monkeypatch.setattr(relax, "newton", static_fails)
+    # the polish fails too (Newton and its proximal steps): the flow's state
+    # is kept and reported
+    def polish_fails(problem, W, c, r, R, lam, opts, prescribed=None):
+        out = plain(problem, r, R, lam, opts, prescribed=prescribed)
+        out[3].converged = False
+        return out
+    monkeypatch.setattr(relax, "polish", polish_fails)
     with pytest.warns(RelaxedShortfall, match="gradient flow's state"):
         res = cantilever().solve(2, snap="relax")
     assert res.converged, res.message

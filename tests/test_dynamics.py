@@ -96,8 +96,8 @@ def _refused_above(monkeypatch, cap, wait_max):
     damped = dynamics.PseudoDynamics.damped
     count = {"accepted": 0, "refused": 0}
 
-    def refusing(self, r, R, t, t_new, dt):
-        out = damped(self, r, R, t, t_new, dt)
+    def refusing(self, r, R, t, t_new, dt, descent=None):
+        out = damped(self, r, R, t, t_new, dt, descent=descent)
         if dt > cap * self.dt0:
             count["refused"] += 1
             out[2].reason = "refused by the test"
