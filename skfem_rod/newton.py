@@ -267,4 +267,5 @@ def at_floor(problem, best, history):
     if best.rn > floor:
         return None
     return best.r, best.R, best.lam, Report(True, iterations=len(history) - 1,
-                                            history=history, evaluation=best.ev, floor=floor)
+                                            history=history, evaluation=best.ev,
+                                            floor=floor / problem.force_scale(best.ev))

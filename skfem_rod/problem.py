@@ -867,7 +867,7 @@ class Report:
     lowest_eigenvalue: float = None
     #: the residual was accepted at its round-off floor
     #: (:meth:`Problem.round_off_floor`, above rtol times the force scale):
-    #: that floor, else None
+    #: that floor relative to the force scale, else None
     floor: float = None
 
 

@@ -146,8 +146,9 @@ def polish(problem, W, c, r, R, lam, opts, prescribed=None):
         history.append(rn)
         floor = problem.round_off_floor(r, R, lam, ev) if rn > tol else None
         if rn <= max(tol, floor or 0.0):
+            scale = problem.force_scale(ev)
             return r, R, lam, Report(True, iterations=total, history=history, evaluation=ev,
-                                     floor=floor)
+                                     floor=None if floor is None else floor / scale)
         c *= 0.25
     return r, R, lam, Report(False, iterations=total, history=history,
                              reason=f"the polish did not converge: Newton ({why}), then "

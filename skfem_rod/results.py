@@ -25,6 +25,10 @@ class Step:
     #: the gradient flow's state kept without a converged Newton polish: its
     #: residual relative to the force scale (above rtol)
     relaxed_residual: float = None
+    #: the step's residual was accepted at its round-off floor, above rtol
+    #: times the force scale (:func:`skfem_rod.newton.at_floor`): that
+    #: floor relative to the force scale
+    floor: float = None
 
 
 @dataclass
@@ -130,7 +134,8 @@ class Result:
                                time=float(lam if time is None else time),
                                flow_steps=int(report.flow_steps),
                                lowest_eigenvalue=report.lowest_eigenvalue,
-                               relaxed_residual=report.relaxed_residual))
+                               relaxed_residual=report.relaxed_residual,
+                               floor=report.floor))
 
     def _contact_state(self, ce, report):
         """:class:`ContactState` of a converged contact evaluation."""

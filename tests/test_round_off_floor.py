@@ -68,7 +68,7 @@ def test_newton_returns_its_least_iterate_at_the_floor(soft, monkeypatch):
     ev = p.evaluate(r1, R1, lam)
     rn = p.residual_norm(ev)
     assert rn == pytest.approx(min(rep.history), rel=1e-12)
-    assert rn <= rep.floor
+    assert rn <= rep.floor * p.force_scale(ev)
     assert rn > opts.rtol * p.force_scale(ev)             # not at rtol: at the floor
     assert max(rep.history[rep.history.index(min(rep.history)):]) > 2 * rn
     # without the floor test Newton cycles to its iteration limit
@@ -85,7 +85,8 @@ def test_at_floor_turns_down_a_residual_above_the_floor(soft):
     assert rn > floor                                     # the flow's state itself
     assert at_floor(p, Iterate(rn, r, R, lam, ev), [rn, 1.0]) is None
     out = at_floor(p, Iterate(0.5 * floor, r, R, lam, ev), [0.5 * floor, 1.0])
-    assert out is not None and out[3].converged and out[3].floor == pytest.approx(floor)
+    assert out is not None and out[3].converged
+    assert out[3].floor == pytest.approx(floor / p.force_scale(ev))
     assert out[3].iterations == 1
 
 
