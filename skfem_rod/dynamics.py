@@ -312,7 +312,8 @@ class PseudoDynamics:
         saved = self.save()
 
         def inner(r0, R0, lam0, opts, prescribed=None):
-            return polish(p, self.W, 1.0 / dt, r0, R0, lam0, opts, prescribed)
+            return polish(p, self.W, 1.0 / dt, r0, R0, lam0, opts, prescribed,
+                          clearance=False)
         r1, R1, rep = al_step(p, r, R, self.lam_of(t), None, self.polish_opts, inner=inner)
         # no clearance cap here: plies in contact slide along each other in
         # a polish; a passage is caught by the AL loop's true-distance check

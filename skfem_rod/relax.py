@@ -99,7 +99,7 @@ def metric(rod, fixed=None, length_scale=None):
 POLISH_STEPS = 40
 
 
-def polish(problem, W, c, r, R, lam, opts, prescribed=None):
+def polish(problem, W, c, r, R, lam, opts, prescribed=None, clearance=True):
     """The equilibrium at ``lam`` next to a flow's or a damped phase's
     state ``(r, R)``: plain Newton, and where that does not converge,
     proximal steps (viscosity ``c W`` about the last iterate, ``c``
@@ -110,7 +110,11 @@ def polish(problem, W, c, r, R, lam, opts, prescribed=None):
     scale or its round-off floor (:meth:`~skfem_rod.problem.Problem.round_off_floor`).
     Same signature and return value as :func:`~skfem_rod.newton.newton`
     after ``W`` and ``c`` (``prescribed`` goes to the first solve); the
-    report counts every Newton iteration.
+    report counts every Newton iteration.  ``clearance``: a solve that
+    moves a node beyond the clearance cap (:func:`clearance_ok`) does not
+    count as converged (the gradient flow's polish; the pseudo-dynamics'
+    lets plies in contact slide and leaves a passage to the AL loop's
+    true-distance check).
 
     Along a very soft mode (the loop of a localizing helix sliding along a
     long rod: lowest eigenvalue 1e-13 of the stiffest) Newton's update
@@ -125,19 +129,22 @@ def polish(problem, W, c, r, R, lam, opts, prescribed=None):
     not a soft mode, and in the frictional plectoneme the proximal steps
     took 1.5 times the time to 1.25 turns on the same path."""
     rod = problem.rod
+
+    def cleared(r0, r1):
+        return not clearance or clearance_ok(rod, r0, r1)
     r1, R1, lam1, rep = newton(problem, r, R, lam, opts, prescribed=prescribed)
-    if rep.converged and clearance_ok(rod, r, r1):
+    if rep.converged and not cleared(r, r1):
+        rep.converged, rep.reason = False, "a node moved beyond the clearance cap"
+    if rep.converged or (prescribed is not None and np.any(prescribed)) \
+            or problem.contact is not None:
         return r1, R1, lam1, rep
-    if (prescribed is not None and np.any(prescribed)) or problem.contact is not None:
-        return r1, R1, lam1, rep
-    total, history = rep.iterations, list(rep.history)
-    why = rep.reason or "a node moved beyond the clearance cap"
+    total, history, why = rep.iterations, list(rep.history), rep.reason
     inner = replace(opts, max_iterations=min(opts.max_iterations, 12))
     for _ in range(POLISH_STEPS):
         with problem.damped(c, W, r, R):
             r1, R1, _, step = newton(problem, r, R, lam, inner)
         total += step.iterations
-        if not (step.converged and clearance_ok(rod, r, r1)):
+        if not (step.converged and cleared(r, r1)):
             c *= 4.0
             continue
         r, R = r1, R1

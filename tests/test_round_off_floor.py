@@ -121,3 +121,36 @@ def test_descent_check_along_an_unstable_mode():
         x1 = x0 * q / (q - k * dt)
         g0, g1 = np.array([-k * x0]), np.array([-k * x1])
         assert climbs(g0, g1, np.array([x1 - x0]), free) is up, dt
+
+
+def test_a_polish_beyond_the_clearance_cap_is_not_converged(soft, monkeypatch):
+    """The gradient flow's polish (``clearance=True``) does not count a
+    solve that moves a node beyond the clearance cap as converged, Newton's
+    or a proximal step's; the pseudo-dynamics' (``clearance=False``) leaves
+    that to the AL loop's true-distance check."""
+    from skfem_rod import relax
+    p, r, R, lam = soft
+    W = metric(p.rod, p.fixed)
+    opts = SolverOptions(max_iterations=3)
+    monkeypatch.setattr(relax, "clearance_ok", lambda rod, r0, r1: False)
+    assert polish(p, W, 1.0, r, R, lam, opts, clearance=False)[3].converged
+    rep = polish(p, W, 1.0, r, R, lam, opts)[3]
+    assert not rep.converged and "40 proximal steps" in rep.reason
+
+
+def test_a_polish_with_contact_beyond_the_clearance_cap_is_not_converged(monkeypatch):
+    """With contact (no proximal steps) Newton's converged solve that moves
+    a node beyond the clearance cap is returned as not converged too."""
+    from skfem_rod import Rod, Section, geometry, relax
+    rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 8)
+    rod.clamp("start").add_force("end", [0.0, 1e-3, 0.0])
+    rod.enable_contact()
+    p = Problem(rod)
+    res = rod.solve(1)
+    st = res.steps[-1]
+    W = metric(rod, p.fixed)
+    assert polish(p, W, 1.0, st.r, st.R, 1.0, SolverOptions())[3].converged
+    monkeypatch.setattr(relax, "clearance_ok", lambda rod, r0, r1: False)
+    rep = polish(p, W, 1.0, st.r, st.R, 1.0, SolverOptions())[3]
+    assert not rep.converged and "clearance cap" in rep.reason
+    assert polish(p, W, 1.0, st.r, st.R, 1.0, SolverOptions(), clearance=False)[3].converged
