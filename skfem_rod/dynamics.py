@@ -60,7 +60,7 @@ import numpy as np
 from .augmented import step as al_step
 from .newton import newton
 from .problem import clearance_ok
-from .relax import metric, polish
+from .relax import climbs, metric, polish, static_residual
 
 __all__ = ["DynamicsLog", "PseudoDynamics", "follow"]
 
@@ -192,20 +192,6 @@ def viscous_inner(problem, W, c, r_ref, R_ref):
     return inner
 
 
-def climbs(g0, g1, dy, free):
-    """Whether a damped step ``dy`` at a held load climbs: the energy change
-    estimated by the trapezoid rule on the static residuals (the energy's
-    gradients) ``g0`` at its start and ``g1`` at its end is above half its
-    viscous work ``|g1 . dy|`` (the gradient flow's descent check,
-    :mod:`skfem_rod.relax`).  A long implicit step of the non-convex
-    problem next to a saddle can converge back onto it (Newton finds any
-    stationary point); along an unstable mode of curvature ``-k`` and
-    metric ``q`` this rejects ``dt > 3 q / k`` from next to the saddle
-    (tests/test_round_off_floor.py)."""
-    down = 0.5 * float(np.dot((g0 + g1)[free], dy[free]))
-    return down > 0.5 * abs(float(np.dot(g1[free], dy[free])))
-
-
 class PseudoDynamics:
     """The damped phases of one solve (module doc): the metric, the step
     size that worked last, the log.  ``stepper`` is the
@@ -263,7 +249,7 @@ class PseudoDynamics:
         pass's only); a rejected step leaves the multipliers as they were.
         ``descent``: the static residual at ``(r, R)`` (the energy's
         gradient, load held): the step is also rejected where it climbs
-        (:func:`climbs`); the accepted step's static residual is then
+        (:func:`~skfem_rod.relax.climbs`); the accepted step's static residual is then
         :attr:`gradient`."""
         p = self.problem
         lam, lam_new = self.lam_of(t), self.lam_of(t_new)
@@ -292,7 +278,7 @@ class PseudoDynamics:
         self.gradient = None
         if ok and descent is not None:
             dy = p.increment(r1, R1, r, R)
-            g1 = rep.evaluation.residual - p.to_basis(self.W * p.to_spatial(dy)) / dt
+            g1 = static_residual(p, self.W, rep.evaluation, dy, dt)
             if climbs(descent, g1, dy, p.free):
                 ok, rep.reason = False, "the damped step climbs (the energy would rise)"
             else:
@@ -415,7 +401,7 @@ class PseudoDynamics:
         """``dt`` within the bound that keeps a damped step next to the last
         saddle convex along its unstable mode (:meth:`push`).  Without
         contact the bound is not applied: there the damped steps next to a
-        saddle are checked for descent instead (:func:`climbs`, as the
+        saddle are checked for descent instead (:func:`~skfem_rod.relax.climbs`, as the
         gradient flow's), which bounds ``dt`` by the curvature along the
         way rather than by the saddle's.  Held at the saddle's bound, the
         localized writhing case's first damped phase (the compressed

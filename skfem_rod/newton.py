@@ -263,6 +263,9 @@ def at_floor(problem, best, history):
     Newton works."""
     if best is None or best.rn > FLOOR_GATE * problem.floor_estimate(best.r, best.ev):
         return None
+    # the floor's evaluation, at best's state rounded, is also the last one:
+    # the problem's search memory (kept master elements, crossing keys) is
+    # best's again, not that of the iterate the residual jumped at
     floor = problem.round_off_floor(best.r, best.R, best.lam, best.ev)
     if best.rn > floor:
         return None

@@ -68,7 +68,7 @@ import numpy as np
 from .newton import Report, newton
 from .problem import clearance_ok
 
-__all__ = ["GradientFlow", "metric", "polish", "clearance_ok"]
+__all__ = ["GradientFlow", "metric", "polish", "climbs", "static_residual", "clearance_ok"]
 
 
 def metric(rod, fixed=None, length_scale=None):
@@ -93,6 +93,29 @@ def metric(rod, fixed=None, length_scale=None):
     if fixed is not None:
         w = np.where(fixed, 0.0, w)
     return w
+
+
+def climbs(g0, g1, dy, free):
+    """Whether a proximal or damped step ``dy`` at a held load climbs: the
+    energy change estimated by the trapezoid rule on the static residuals
+    (the energy's gradients) ``g0`` at its start and ``g1`` at its end is
+    above half its viscous work ``|g1 . dy|``.  The descent check of the
+    gradient flow next to a saddle, and of the damped steps next to one
+    without contact (:meth:`skfem_rod.dynamics.PseudoDynamics.capped`): a
+    long implicit step of the non-convex problem can converge back onto
+    the saddle (Newton finds any stationary point).  Along an unstable mode
+    of curvature ``-k`` and metric ``q`` it rejects ``dt > 3 q / k`` from
+    next to the saddle (tests/test_round_off_floor.py); the slack leaves
+    room for the non-smooth contact terms."""
+    down = 0.5 * float(np.dot((g0 + g1)[free], dy[free]))
+    return down > 0.5 * abs(float(np.dot(g1[free], dy[free])))
+
+
+def static_residual(problem, W, ev, dy, dt):
+    """The residual of the evaluation ``ev`` of a proximal or damped step
+    ``dy`` (viscosity ``1 / dt``) without its viscous term: the energy's
+    gradient at the step's end."""
+    return ev.residual - problem.to_basis(W * problem.to_spatial(dy)) / dt
 
 
 #: proximal steps of a polish (:func:`polish`) before it gives up
@@ -214,20 +237,12 @@ class GradientFlow:
             if ok and not clearance_ok(rod, r, r1):
                 ok, rep.reason = False, "a node moved beyond the clearance cap"
             if ok:
-                # descent: the energy change over the step, by the trapezoid
-                # rule on the gradients g0 (at y_k) and g1 = res - c W dy (at
-                # y_k+1), must not exceed half the viscous work |g1 . dy|.  A
-                # too long step of the non-convex proximal problem can climb
-                # back onto a saddle (Newton converges to any stationary
-                # point); from next to a saddle, along an unstable mode of
-                # curvature -k, this rejects c W < k / 3 (dynamics.climbs),
-                # and the slack leaves room for the non-smooth contact terms.
+                # descent next to a saddle: a too long step of the non-convex
+                # proximal problem can climb back onto it (:func:`climbs`)
                 dy = problem.increment(r1, R1, r, R)
-                g1 = rep.evaluation.residual - problem.to_basis(W * problem.to_spatial(dy)) / dt
-                if descent and g0 is not None:
-                    down = 0.5 * float(np.dot((g0 + g1)[free], dy[free]))
-                    if down > 0.5 * abs(float(np.dot(g1[free], dy[free]))):
-                        ok, rep.reason = False, "the proximal step climbs (energy would rise)"
+                g1 = static_residual(problem, W, rep.evaluation, dy, dt)
+                if descent and g0 is not None and climbs(g0, g1, dy, free):
+                    ok, rep.reason = False, "the proximal step climbs (energy would rise)"
             if not ok:
                 why = rep.reason
                 dt /= 3.0

@@ -15,11 +15,10 @@ import numpy as np
 import pytest
 
 from skfem_rod import newton as newton_module
-from skfem_rod.dynamics import climbs
 from skfem_rod.newton import Iterate, at_floor, newton
 from skfem_rod.options import SolverOptions
 from skfem_rod.problem import Problem
-from skfem_rod.relax import metric, polish
+from skfem_rod.relax import climbs, metric, polish
 
 from helpers import load_bench
 
