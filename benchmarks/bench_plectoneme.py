@@ -136,10 +136,27 @@ def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped
                 newton_median_accepted=float(np.median(newton[acc])) if acc.any() else None,
                 damped=d.damped_steps, rejected=int((~acc).sum()),
                 flow_steps=int(sum(st.flow_steps for st in result.steps)),
+                by_kind=by_kind(d),
                 max_penetration_recorded=max(true_pen, default=float("-inf")),
                 max_penetration_all=d.max_penetration,
                 max_uzawa_penetration=max(r["penetration"] for r in recs),
                 result=result)
+
+
+def by_kind(log):
+    """Newton iterations of a run's solves (:class:`~skfem_rod.dynamics.DynamicsLog`
+    ``log``) by kind ("static", "damped", "polish") and outcome: ``{kind:
+    dict(accepted, accepted_its, median_its, failed, failed_its)}``, the
+    median over the accepted solves of that kind."""
+    kind, its = np.array(log.kind), np.array(log.newton, dtype=int)
+    ok = np.array(log.accepted, dtype=bool)
+    out = {}
+    for k in ("static", "damped", "polish"):
+        a, f = (kind == k) & ok, (kind == k) & ~ok
+        out[k] = dict(accepted=int(a.sum()), accepted_its=int(its[a].sum()),
+                      median_its=float(np.median(its[a])) if a.any() else 0.0,
+                      failed=int(f.sum()), failed_its=int(its[f].sum()))
+    return out
 
 
 def plot(runs, path):
@@ -208,6 +225,16 @@ def report(runs, path, command, png):
             f"{r['solves']} | {r['newton_total']} | {r['newton_median']:.0f} | {r['damped']} | "
             f"{r['rejected']} | {r['flow_steps']} | {r['max_penetration_recorded']:.2e} | "
             f"{r['max_penetration_all']:.2e} | {r['message'][:160]} |")
+    lines += ["", "Where the Newton iterations went, by solve (accepted: solves, iterations, "
+              "median per solve; failed: solves, iterations):", "",
+              "| elements | gamma_T | static steps | damped steps | polishes | failed static | "
+              "failed damped | failed polishes |", "|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        b = r["by_kind"]
+        cells = [f"{b[k]['accepted']} / {b[k]['accepted_its']} / {b[k]['median_its']:.0f}"
+                 for k in ("static", "damped", "polish")]
+        cells += [f"{b[k]['failed']} / {b[k]['failed_its']}" for k in ("static", "damped", "polish")]
+        lines.append(f"| {r['n_elements']} | {r['gamma_T']:g} | " + " | ".join(cells) + " |")
     lines += ["", f"![extension and torque against turns]({os.path.basename(png)})", ""]
     Path(path).write_text("\n".join(lines) + "\n")
 

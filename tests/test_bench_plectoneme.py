@@ -19,6 +19,13 @@ def test_a_run_stops_at_its_budget_and_reports_what_it_reached():
     assert out["turns"] == turns[-1] < 10.0
     assert len(out["result"].steps) == len(out["records"])
     assert out["flow_steps"] == 0
+    # the iterations by kind of solve add up to the run's figures
+    b = out["by_kind"]
+    log = out["result"].dynamics
+    assert sum(v["accepted"] + v["failed"] for v in b.values()) == out["solves"] == len(log.kind)
+    assert sum(v["accepted_its"] + v["failed_its"] for v in b.values()) == out["newton_total"]
+    assert b["damped"]["accepted"] == out["damped"]
+    assert sum(v["failed"] for v in b.values()) == out["rejected"]
 
 
 def test_runs_printed_side_by_side_are_plotted_from_their_logs(tmp_path, capsys):
