@@ -34,7 +34,6 @@ from .kinematics import ElementRotationError
 # Report, the position correction and its threshold live in problem.py
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
-from .problem import FLOOR_GATE
 from .problem import Increment, State, settled, spin_cap, start, update_size
 from .problem import failed as _fail
 
@@ -174,13 +173,17 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         return _fail(r, R, lam, history, 0, why)
     best = None             # the iterate of least residual, motions applied: Iterate
     checked = None          # the last one at_floor turned down
+
+    def give_up(it, reason):
+        # the least iterate if it is at its round-off floor, else failure
+        return (best is not checked and at_floor(problem, best, history)) or \
+            _fail(r, R, lam, history, it, reason, ev)
     for it in range(opts.max_iterations + 1):
         rn = problem.residual_norm(ev)
         scale = problem.force_scale(ev)
         history.append(rn)
         if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
-            return (best is not checked and at_floor(problem, best, history)) or \
-                _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
+            return give_up(it, "non-finite residual or forces")
         bordered_ok = border is None or \
             abs(border.residual()) <= 1e-8 * max(abs(border.target), 1e-300)
         if settled(history, last_update, opts.rtol * scale, opts.increment_tol) \
@@ -219,9 +222,8 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         accepted, alpha, why = safeguarded_update(problem, State(r, R, lam), inc, opts,
                                                   bound, rn, slope)
         if accepted is None:
-            return (best is not checked and at_floor(problem, best, history)) or \
-                _fail(r, R, lam, history, it + 1,
-                      f"no admissible update after {opts.max_backtracks} halvings: {why}", ev)
+            return give_up(it + 1,
+                           f"no admissible update after {opts.max_backtracks} halvings: {why}")
         r, R, ev = accepted
         lam = lam + alpha * inc.dl
         if border is not None:
@@ -229,10 +231,8 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         last_update = update_size(problem, alpha * inc.dy)
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
-    return (best is not checked and at_floor(problem, best, history)) or \
-        _fail(r, R, lam, history, opts.max_iterations,
-              f"no convergence in {opts.max_iterations} iterations "
-              f"(residual {history[-1]:.3e})", ev)
+    return give_up(opts.max_iterations, f"no convergence in {opts.max_iterations} "
+                                        f"iterations (residual {history[-1]:.3e})")
 
 
 class Iterate(NamedTuple):
@@ -249,9 +249,8 @@ def at_floor(problem, best, history):
     """The :class:`Iterate` ``best`` as the converged state of a Newton
     solve that cannot go on (its residual jumped up from there, no update
     was admissible, or the iterations ran out) when its residual is at its
-    round-off floor (:meth:`~skfem_rod.problem.Problem.round_off_floor`,
-    measured only within :data:`~skfem_rod.problem.FLOOR_GATE` times
-    :meth:`~skfem_rod.problem.Problem.floor_estimate`); else None.
+    round-off floor (:meth:`~skfem_rod.problem.Problem.at_floor`); else
+    None.
 
     A residual at its floor cannot be told from zero in double precision,
     and the updates Newton computes from it are round-off amplified by the
@@ -261,13 +260,13 @@ def at_floor(problem, best, history):
     3-cycle, the floor there 3e-7 (the force scale 2).  A solve that
     converges to ``rtol`` never gets here, so this costs nothing where
     Newton works."""
-    if best is None or best.rn > FLOOR_GATE * problem.floor_estimate(best.r, best.ev):
+    if best is None:
         return None
     # the floor's evaluation, at best's state rounded, is also the last one:
     # the problem's search memory (kept master elements, crossing keys) is
     # best's again, not that of the iterate the residual jumped at
-    floor = problem.round_off_floor(best.r, best.R, best.lam, best.ev)
-    if best.rn > floor:
+    floor = problem.at_floor(best.r, best.R, best.lam, best.ev, best.rn)
+    if floor is None:
         return None
     return best.r, best.R, best.lam, Report(True, iterations=len(history) - 1,
                                             history=history, evaluation=best.ev,

@@ -573,6 +573,20 @@ class Problem:
         ev_t = self.evaluate((r + s) - s, R, lam, tangent=False)
         return float(np.linalg.norm((ev_t.residual - ev.residual)[self.free]))
 
+    def at_floor(self, r, R, lam, ev, rn):
+        """The residual's round-off floor at ``(r, R, lam)`` (evaluation
+        ``ev``, with its tangent) if the residual norm ``rn`` is at or below
+        it, else None.  The floor is measured (:meth:`round_off_floor`, one
+        evaluation) only where ``rn`` is within :data:`FLOOR_GATE` times
+        :meth:`floor_estimate`: elsewhere it cannot decide.  Newton's least
+        iterate (:func:`skfem_rod.newton.at_floor`) and the polish's
+        proximal steps (:func:`skfem_rod.relax.polish`) accept a state by
+        this test."""
+        if rn > FLOOR_GATE * self.floor_estimate(r, ev):
+            return None
+        floor = self.round_off_floor(r, R, lam, ev)
+        return floor if rn <= floor else None
+
     # -- linear solve ------------------------------------------------------
     def factor(self, K, fixed=None):
         """Factorize ``K`` on the free dofs (constrained rows and columns

@@ -172,11 +172,10 @@ def polish(problem, W, c, r, R, lam, opts, prescribed=None, clearance=True):
             continue
         r, R = r1, R1
         ev = problem.evaluate(r, R, lam)
-        rn, tol = problem.residual_norm(ev), opts.rtol * problem.force_scale(ev)
+        rn, scale = problem.residual_norm(ev), problem.force_scale(ev)
         history.append(rn)
-        floor = problem.round_off_floor(r, R, lam, ev) if rn > tol else None
-        if rn <= max(tol, floor or 0.0):
-            scale = problem.force_scale(ev)
+        floor = problem.at_floor(r, R, lam, ev, rn) if rn > opts.rtol * scale else None
+        if rn <= opts.rtol * scale or floor is not None:
             return r, R, lam, Report(True, iterations=total, history=history, evaluation=ev,
                                      floor=None if floor is None else floor / scale)
         c *= 0.25
