@@ -9,7 +9,10 @@ paper's eq. 4.2b-c) and takes over if a solve ends short of the contact
 tolerances.  docs/contact-solve.md has the derivation and the measurements.
 
 Unknowns ``(y, lambda_N)``, ``lambda_N`` one per slave point (a force per
-unit length).  Residuals (``w`` the slave's weight, ``f_N`` the
+unit length), and with crossing contact one point force per crossing pair
+of the current evaluation (``C_c = w f_N - lambda_c``, the fixed point of
+the Uzawa update of a pair of weight ``w``; docs/contact-solve.md, "The
+crossing pairs among the unknowns").  Residuals (``w`` the slave's weight, ``f_N`` the
 augmented-Lagrangian force of eq. 4.2a, ``f_N = [d + mu lambda_N]_+ / mu``)::
 
     G(y, lambda)   = internal - external + contact(f_N) + friction(f_N)
@@ -86,7 +89,8 @@ class ContactState:
     evaluation (:func:`contact_blocks`; the blocks None without the
     Jacobian).  The multiplier unknowns are one vector (:func:`unknowns`):
     the normal ones, then the friction ones of each law in
-    :func:`friction_laws` (3 per slave point); ``active`` marks those that
+    :func:`friction_laws` (3 per slave point), then (``crossing``) one per
+    crossing pair of the evaluation; ``active`` marks those that
     join the linear system (the normal multipliers where the law is active,
     the friction multipliers of the points in contact), the others are
     condensed (``-w dlambda = -C``).  ``D`` is the exact ``dC/dlambda``,
@@ -133,28 +137,41 @@ def friction_laws(problem):
     return tuple((name, X) for name, coef, X in LAWS if getattr(c, coef) > 0)
 
 
-def unknowns(problem):
-    """The multiplier unknowns as one vector (normal, then friction)."""
+def unknowns(problem, pairs=None):
+    """The multiplier unknowns as one vector: normal, then friction, then
+    (``pairs``: the crossing pairs of the current evaluation) the crossing
+    pairs' multipliers, carried by place to those pairs."""
     m = problem.multipliers
-    return np.concatenate([m.normal] + [getattr(m, name).ravel()
-                                        for name, _ in friction_laws(problem)])
+    parts = [m.normal] + [getattr(m, name).ravel() for name, _ in friction_laws(problem)]
+    if pairs is not None:
+        from .contact.crossing import carry
+        parts.append(carry(m.crossing_key, m.crossing, pairs.key))
+    return np.concatenate(parts)
 
 
-def set_unknowns(problem, x):
-    """The multipliers of ``problem`` from the vector ``x`` of :func:`unknowns`."""
+def set_unknowns(problem, x, pairs=None):
+    """The multipliers of ``problem`` from the vector ``x`` of
+    :func:`unknowns` (the crossing multipliers keyed to ``pairs``)."""
     m = problem.multipliers
     ns = m.normal.size
     m.normal = x[:ns].copy()
-    for k, (name, _) in enumerate(friction_laws(problem)):
+    laws = friction_laws(problem)
+    for k, (name, _) in enumerate(laws):
         setattr(m, name, x[ns + 3 * ns * k:ns + 3 * ns * (k + 1)].reshape(ns, 3).copy())
+    if pairs is not None:
+        start_c = ns + 3 * ns * len(laws)
+        m.rekey_crossing(pairs.key.copy(), x[start_c:start_c + pairs.size].copy(),
+                         offset=m.crossing_offsets(pairs.key))
 
 
-def contact_blocks(problem, ev, jacobian=True, weight=1.0):
+def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
     """The complementarity residual ``C`` and the blocks ``dC/dy``,
     ``dG/dlambda`` (in the dof basis), ``dC/dlambda`` at the evaluation
     ``ev`` of ``problem`` (multipliers: ``problem.multipliers``, ordered as
-    :func:`unknowns`); the merit is ``|(G_free, weight C)|`` (weight 0 when
-    polishing).
+    :func:`unknowns`, with the crossing pairs of ``ev`` when ``crossing``);
+    the merit is ``|(G_free, weight C)|`` (weight 0 when polishing).  The
+    penetration and open gap include the crossing pairs' with
+    ``crossing``.
 
     Friction (docs/contact-solve.md): ``C_X = w (c_X - lambda_X)`` per slave
     point, ``c_X`` the Uzawa update of the law's multiplier (the force
@@ -182,6 +199,11 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
         updates, moved = multiplier_updates(fr, m, c, [name for name, _ in laws])
         for name, _ in laws:
             Cs.append((w_all[:, None] * (updates[name] - getattr(m, name))).ravel())
+    cp = ce.crossing if crossing else None
+    if cp is not None:
+        from .contact.crossing import carry
+        lam_c = carry(m.crossing_key, m.crossing, cp.key)
+        Cs.append(ce.crossing_fN - lam_c)
     C = np.concatenate(Cs)
     # the Uzawa loop's Coulomb test: at a point whose slip is just above
     # its tolerance the force's direction is sensitive to the multiplier
@@ -200,6 +222,14 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
         active[(ns + 3 * ns * k + 3 * fslaves[:, None] + np.arange(3)).ravel()] = True
     pen = float(d.max(initial=0.0))
     opened = float(np.max(-d[ce.fN > 0], initial=0.0))
+    nf = ns + 3 * ns * len(laws)                 # where the crossing block starts
+    if cp is not None:
+        mu_c = c.crossing_penalty / m.crossing_scale
+        dc = ce.crossing_gap
+        act_c = (dc + mu_c * lam_c) > 0
+        active[nf + np.flatnonzero(act_c)] = True
+        pen = max(pen, float(dc.max(initial=0.0)))
+        opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
     G = ev.residual
     # C in units of G's tolerance: w tol / mu per point (the gap tolerance
     # of the Uzawa loop as a force) against rtol times the force scale
@@ -227,11 +257,36 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0):
     # dC/dlambda: -w where the normal law is inactive (0 where active),
     # -w I for the friction multipliers of points out of contact
     diag = np.where(active[:ns], 0.0, -w_all)
-    dd = [(np.concatenate([diag] + [np.repeat(-w_all, 3)] * len(laws)),
-           np.arange(nl), np.arange(nl))]
+    diags = [diag] + [np.repeat(-w_all, 3)] * len(laws)
     # the part of dC/dlambda the active rows are regularized with
     # (-REGULARIZATION w times the update's own derivative dc/dlambda)
     reg = [(np.where(active[:ns], -REGULARIZATION * w_all, 0.0), np.arange(ns), np.arange(ns))]
+    if cp is not None:
+        # C_c = w f_N - lambda, f_N = [d + mu lambda]_+ / mu, d = 2 eps +
+        # w offset - l: active, dC/dlambda = w - 1 and dC/dy = -(w / mu)
+        # dl + (f_N + w offset / mu) dw/dq, dG/dlambda = -w dl; inactive,
+        # dC/dlambda = -1
+        from .contact.crossing import gap_gradients
+        wc = cp.weight
+        diags.append(np.where(act_c, wc - 1.0, -1.0))
+        rows_c = nf + np.arange(cp.size)
+        reg.append((np.where(act_c, -REGULARIZATION, 0.0), rows_c, rows_c))
+        kc = np.flatnonzero(act_c)
+        if kc.size:
+            cdofs, dl_c = gap_gradients(cmesh, cp)
+            cdofs, dl_c = cdofs[kc], dl_c[kc]
+            ccols = np.repeat(rows_c[kc], 24)
+            yl.append(((-wc[kc, None] * dl_c).ravel(), cdofs.ravel(), ccols))
+            ly.append(((-(wc[kc] / mu_c)[:, None] * dl_c).ravel(), ccols, cdofs.ravel()))
+            if ce.crossing_dw is not None and ce.crossing_dw.nnz:
+                # the weight's own derivative (a fading pair): d(w f_N)/dw
+                # = f_N + w f_N' offset along dw/dq
+                off_c = m.crossing_offsets(cp.key)
+                coef = np.zeros(cp.size)
+                coef[kc] = ce.crossing_fN[kc] / wc[kc] + wc[kc] * off_c[kc] / mu_c
+                Wq = ce.crossing_dw.tocoo()
+                ly.append((coef[Wq.row] * Wq.data, nf + Wq.row, Wq.col))
+    dd = [(np.concatenate(diags), np.arange(nl), np.arange(nl))]
     if fr is not None and fr.dresidual_dfN is not None and fr.index.size:
         # friction pairs are the pairs with f_N > 0 (all active)
         fd, fv = fr.dresidual_dfN
@@ -355,10 +410,17 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
     if not out[3].converged:
         # a failed solve leaves the multipliers as it found them (the
         # gradient flow falls back on its own state at those)
-        m = problem.multipliers
-        for f in fields(m):                  # in place: callers hold m
-            setattr(m, f.name, getattr(saved, f.name))
+        restore(problem.multipliers, saved)
     return out
+
+
+def restore(m, saved):
+    """Put the multipliers ``m`` back to the copy ``saved``, in place
+    (callers hold ``m``); ``saved`` stays untouched (an evaluation
+    updates the crossing places in place)."""
+    fresh = saved.copy()
+    for f in fields(m):
+        setattr(m, f.name, getattr(fresh, f.name))
 
 
 def _contact_newton(problem, r, R, lam, opts, prescribed=None):
@@ -371,6 +433,8 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
     held (the contact tolerances met; None if never), ``report.step_lengths``
     the line search's ``alpha`` per iteration."""
     c, m = problem.contact, problem.multipliers
+    # the crossing pairs' multipliers are unknowns too (crossing contact on)
+    crossing = bool(c.crossing)
     history, complementarity, alphas, merits, switches = [], [], [], [], []
     states = None
     tol = c.tolerance * c.radius
@@ -382,7 +446,8 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         scale = problem.force_scale(ev)
         if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
             return _fail(r, R, lam, history, it, "non-finite residual or forces", ev)
-        cs = contact_blocks(problem, ev, weight=0.0 if polish else 1.0)
+        cs = contact_blocks(problem, ev, weight=0.0 if polish else 1.0, crossing=crossing)
+        pairs = ev.contact.crossing if crossing else None
         rn = problem.residual_norm(ev)
         history.append(rn)
         complementarity.append(float(np.linalg.norm(cs.C)))
@@ -415,13 +480,13 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         merit = Merit(merits[-1], max(merits[-MEMORY:]), scale, 0.0 if polish else 1.0,
                       it < 2 or bool(np.any(remaining)))
         at, inc = State(r, R, lam), Increment(dy, dl)
-        accepted, alpha, why = line_search(problem, at, inc, merit, opts)
+        accepted, alpha, why = line_search(problem, at, inc, merit, opts, pairs)
         if accepted is None and escapes < ESCAPES:
             # a kink of C between the iterate and every trial (a contact
             # that must open seen from its active branch): take the largest
             # admissible trial, at most ESCAPES times a solve (so no cycle)
             accepted, alpha, why = line_search(problem, at, inc, merit._replace(first=True),
-                                               opts)
+                                               opts, pairs)
             escapes += 1
         if accepted is None and tolerances and not polish and not np.any(remaining):
             # the merit cannot fall below the mismatch of the two slave
@@ -433,7 +498,7 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
                          f"no admissible update after {opts.max_backtracks} halvings: {why}",
                          ev)
         r, R, ev, x = accepted
-        set_unknowns(problem, x)
+        set_unknowns(problem, x, pairs)
         if ev.tangent is None:
             ev = problem.evaluate(r, R, lam)
         alphas.append(alpha)
@@ -447,7 +512,7 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
                  f"(merit {history[-1]:.3e})", ev)
 
 
-def line_search(problem, at, inc, merit, opts):
+def line_search(problem, at, inc, merit, opts, pairs=None):
     """Backtracking on the merit ``|(G_free, weight C)|`` from the
     :class:`~skfem_rod.problem.State` ``at`` along the
     :class:`~skfem_rod.problem.Increment` ``inc`` (``dl``: the normal
@@ -467,7 +532,8 @@ def line_search(problem, at, inc, merit, opts):
     update can raise the residual, and the next one converges); otherwise
     the lowest trial below the reference, else none.
     """
-    lam0 = unknowns(problem)
+    lam0 = unknowns(problem, pairs)
+    saved = problem.multipliers.copy()
     r, R, lam = at
     dy, dl = inc
     reference, weight = merit.reference, merit.weight
@@ -486,23 +552,25 @@ def line_search(problem, at, inc, merit, opts):
                 why = "the update would carry a strand through another"
                 alpha *= 0.5
                 continue
-            set_unknowns(problem, lam_t)
+            set_unknowns(problem, lam_t, pairs)
             # the first trial is usually taken: its tangent is the next
             # iteration's; halved trials get theirs once taken
             ev_t = problem.evaluate(r_t, R_t, lam, tangent=alpha == alpha0)
-            mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
+            mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight,
+                                crossing=pairs is not None).merit
             if np.isfinite(mt) and opts.position_correction and mt > CORRECT_ABOVE * merit.last:
                 # as plain Newton (skfem_rod.problem.position_correction)
                 if ev_t.tangent is None:
                     ev_t = problem.evaluate(r_t, R_t, lam)
                 r_t, ev_t = position_correction(problem, r_t, R_t, lam, ev_t)
-                mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight).merit
+                mt = contact_blocks(problem, ev_t, jacobian=False, weight=weight,
+                                    crossing=pairs is not None).merit
         except ElementRotationError as err:
             why = str(err)
             alpha *= 0.5
             continue
         finally:
-            set_unknowns(problem, lam0)
+            restore(problem.multipliers, saved)
         if not np.isfinite(mt):
             why = "non-finite residual"
         else:

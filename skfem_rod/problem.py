@@ -58,6 +58,9 @@ class ContactEvaluation:
     gap: np.ndarray = None
     crossing_gap: np.ndarray = None
     offset: np.ndarray = None        # per slave pair
+    #: ``(m, n)`` the crossing pairs' weight derivatives ``dw/dq`` on the
+    #: contact curve's dofs (with the tangent; :func:`crossing_work`)
+    crossing_dw: object = None
 
 
 @dataclass
@@ -502,13 +505,15 @@ class Problem:
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             off = m.crossing_offsets(cp.key)
-            ec, fc, Kc, fNc = crossing_work(mesh, r, cp, lam,
-                                            c.crossing_penalty / m.crossing_scale,
-                                            c.radius, tangent, fade=not frozen, offset=off)
+            out = crossing_work(mesh, r, cp, lam, c.crossing_penalty / m.crossing_scale,
+                                c.radius, tangent, fade=not frozen, offset=off,
+                                weight_rows=tangent)
+            ec, fc, Kc, fNc = out[:4]
             force = force + fc
             if tangent:
                 K = K + Kc
             ce.crossing, ce.crossing_fN, ce.energy = cp, fNc, ce.energy + ec
+            ce.crossing_dw = out[4] if tangent else None
             # a fading pair's offset fades with it (crossing_work)
             ce.crossing_gap = 2.0 * c.radius + cp.weight * off - cp.distance
             tm["crossing"] += time.perf_counter() - t3

@@ -1153,7 +1153,22 @@ def carry(old_key, old_lam, new_key):
     return lam
 
 
-def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offset=None):
+def gap_gradients(mesh, pairs):
+    """The derivative of each pair's distance ``l`` with respect to the
+    position dofs of its two elements at fixed weight (the row ``dl/dq``
+    of :func:`crossing_work`): ``(dofs, dl)``, both ``(m, 24)``."""
+    l = pairs.distance if pairs.length is None else pairs.length
+    Nu = shape_functions(pairs.u)[0].T
+    Nv = shape_functions(pairs.v)[0].T
+    aD = np.concatenate([Nu, -Nv], axis=1)
+    lq = _outer(aD, pairs.normal * l[:, None]) / l[:, None]
+    nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
+    dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(pairs.size, 24)
+    return dofs, lq
+
+
+def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offset=None,
+                  weight_rows=False):
     """Energy, force vector ``(n_dofs,)``, tangent (CSC or None) and the
     per-pair forces ``f_N`` of the crossing pairs (``pairs`` from
     :func:`crossing_pairs` at ``r``; ``lam`` ``(m,)`` their multipliers,
@@ -1174,11 +1189,17 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
     ``2 radius + w offset``.  The offset fades with the weight: a fading
     pair shares its gap with the Gauss pairs, which hold their own offsets
     (docs/crossing-contact.md, section 4).  Its derivative through ``w`` is
-    in the tangent."""
+    in the tangent.
+
+    ``weight_rows`` (with ``tangent``): a fifth output, the ``(m, n_dofs)``
+    CSR matrix of the weights' derivatives ``dw/dq`` (zero rows where a
+    pair's weight has no slope), read by the generalized Newton's
+    complementarity rows (:func:`skfem_rod.nonsmooth.contact_blocks`)."""
     n = mesh.n_dofs
     m = pairs.size
     if m == 0:
-        return 0.0, np.zeros(n), (sp.csc_matrix((n, n)) if tangent else None), np.zeros(0)
+        out = (0.0, np.zeros(n), (sp.csc_matrix((n, n)) if tangent else None), np.zeros(0))
+        return out + (sp.csr_matrix((0, n)),) if weight_rows and tangent else out
     l = pairs.distance if pairs.length is None else pairs.length
     w = np.ones(m) if pairs.weight is None else pairs.weight
     off = np.zeros(m) if offset is None else np.asarray(offset, float)
@@ -1224,7 +1245,8 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
                              - fN[:, None, None] * lqq)
     rows, cols = [dofs], [dofs]
     blocks = [Ke]
-    if fade and pairs.slope is not None:
+    dw_parts = []                                  # (pair, dofs, dw/dq) of fading pairs
+    if (fade or weight_rows) and pairs.slope is not None:
         # the weight's derivative, for the pairs whose weight has a slope:
         # w(rise, l, sin^2 beta), rise = (lowest probe's distance) - l, the
         # probe riding on the pair's parameters (dp/dq = -S) and on its own
@@ -1239,16 +1261,27 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
                                         aY1[i], S[i],
                                         None if ps.reading is None else ps.reading[i])
             dw = dw + wb * own
-            # w f_N(d) with d = 2 eps + w offset - l: the weight's
-            # derivative enters through the factor and through the gap
-            g = -(fN[i] + w[i] * dfN[i] * off[i])[:, None, None] * lq[i, :, None]
-            blocks += [g * dw[:, None, :], g * (ws * ps.probe_dq[i])[:, None, :],
-                       g * (wb * beside)[:, None, :]]
-            rows += [dofs[i]] * 3
-            cols += [dofs[i], ps.probe_dofs[i], bdofs]
+            dw_parts = [(i, dofs[i], dw), (i, ps.probe_dofs[i], ws * ps.probe_dq[i]),
+                        (i, bdofs, wb * beside)]
+            if fade:
+                # w f_N(d) with d = 2 eps + w offset - l: the weight's
+                # derivative enters through the factor and through the gap
+                g = -(fN[i] + w[i] * dfN[i] * off[i])[:, None, None] * lq[i, :, None]
+                blocks += [g * v[:, None, :] for _, _, v in dw_parts]
+                rows += [dofs[i]] * 3
+                cols += [c for _, c, _ in dw_parts]
     ij = [(np.broadcast_to(a[:, :, None], b.shape).ravel(),
            np.broadcast_to(c[:, None, :], b.shape).ravel()) for a, c, b in zip(rows, cols, blocks)]
     K = sp.csc_matrix((np.concatenate([b.ravel() for b in blocks]),
                        (np.concatenate([i for i, _ in ij]), np.concatenate([j for _, j in ij]))),
                       shape=(n, n))
-    return energy, force, K, w * fN
+    if not weight_rows:
+        return energy, force, K, w * fN
+    if dw_parts:
+        vals = np.concatenate([v.ravel() for _, _, v in dw_parts])
+        prs = np.concatenate([np.broadcast_to(i[:, None], c.shape).ravel() for i, c, _ in dw_parts])
+        dcs = np.concatenate([c.ravel() for _, c, _ in dw_parts])
+        Wq = sp.csr_matrix((vals, (prs, dcs)), shape=(m, n))
+    else:
+        Wq = sp.csr_matrix((m, n))
+    return energy, force, K, w * fN, Wq
