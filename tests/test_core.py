@@ -348,12 +348,13 @@ def test_unloaded_closed_ring_with_contact_stays_put(curve):
         assert np.abs(st.r - rod.r0).max() < 1e-12 * eps
 
 
-def _figure_eight(eps, sep):
+def _figure_eight(eps, sep, flatten=1.0):
     """A figure-eight (lemniscate of Gerono, x = sin t, y = sin t cos t)
     whose two strands cross at 90 degrees at the origin, ``sep`` apart in z;
-    the arclengths of the two crossing points."""
+    the arclengths of the two crossing points.  ``flatten`` scales y: the
+    strands cross at ``2 atan(flatten)``."""
     t = np.linspace(-np.pi / 2 + 0.4, 3 * np.pi / 2 - 0.4, 20001)
-    p = np.c_[np.sin(t), np.sin(t) * np.cos(t), 0.5 * sep * np.cos(t)]
+    p = np.c_[np.sin(t), flatten * np.sin(t) * np.cos(t), 0.5 * sep * np.cos(t)]
     s = np.r_[0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
 
     def r(q):

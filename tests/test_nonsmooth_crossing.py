@@ -148,3 +148,51 @@ def test_pressed_crossing_needs_no_uzawa_update():
     pen_u, uzawa_u = figures["uzawa"]
     assert sum(uzawa_u) >= 2
     assert 1e-4 < max(pen_u) <= rod.contact.tolerance
+
+
+def test_generalized_jacobian_with_a_fading_crossing_pair(monkeypatch):
+    """A figure-eight flattened so that its strands cross at 42 degrees,
+    with the wide threshold of tests/test_crossing.py's fading tests (on
+    these curved strands, elements 7 eps long, the weight rises from 0 at
+    32 to 1 at 50 degrees), its nodes moved by 1e-2 eps at random: the
+    crossing pair's weight is 0.55, and its complementarity
+    row carries the weight's derivative ``(f_N + w offset / mu) dw/dq``.
+    The whole generalized Jacobian against central differences; without
+    that term the row would not match."""
+    from skfem_rod.contact import ContactOptions
+    eps = 0.01
+    a = np.tan(np.radians(21.0))             # crossing angle 2 atan(a) = 42 degrees
+    shape, _ = _figure_eight(eps, 1.92 * eps, flatten=a)
+    rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
+    rod.clamp("start").clamp("end")
+    rod.enable_contact(crossing=True)
+    monkeypatch.setattr(ContactOptions, "crossing_threshold", lambda self: _WIDE)
+    p = Problem(rod)
+    # off the lemniscate's symmetry: there the probes on either side rise
+    # alike, and the lowest of them (the weight reads the least rise) has
+    # a kink in every direction that makes them differ
+    R = rod.R0
+    r = rod.r0 + 1e-2 * eps * np.random.default_rng(1).normal(size=rod.r0.shape)
+    cp = p.evaluate(r, R, 0.0).contact.crossing
+    assert cp.size == 1 and 0.05 < cp.weight[0] < 0.95
+    p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]))
+    ev = p.evaluate(r, R, 0.0)
+    cp = ev.contact.crossing
+    assert ev.contact.crossing_dw.nnz > 0
+    cs = nonsmooth.contact_blocks(p, ev, crossing=True)
+    assert cs.active[-1]
+    x = nonsmooth.unknowns(p, cp)
+    rng = np.random.default_rng(3)
+    dy = rng.normal(size=p.mesh.n_dofs)
+    dy.reshape(-1, 6)[:, 3:] *= 0.3
+    h = 1e-7
+    plus = _residuals(p, cp, *p.update(r, R, dy, h), x)
+    minus = _residuals(p, cp, *p.update(r, R, dy, -h), x)
+    fd_C = (plus[1] - minus[1]) / (2 * h)
+    J_C = cs.K_ly @ dy
+    assert abs(fd_C[-1]) > 0
+    assert abs(fd_C[-1] - J_C[-1]) <= 1e-6 * abs(fd_C[-1])
+    # the weight's term is a visible part of the row (the contact curve is
+    # the centreline here, its dofs the rod's)
+    term = ev.contact.crossing_fN[0] / cp.weight[0] * (ev.contact.crossing_dw @ dy)[0]
+    assert abs(term) > 1e-3 * abs(fd_C[-1])
