@@ -363,6 +363,20 @@ def _figure_eight(eps, sep, flatten=1.0):
     return geometry.curve(r, s[-1], ds=1e-4), np.interp([0.0, np.pi], t, s)
 
 
+def pressed_figure_eight(eps, crossing):
+    """The figure-eight above, strands 3 ``eps`` apart, 60 elements (9
+    ``eps`` long), both ends clamped, pressed together at the crossing by
+    opposite point forces of 2 (load factor 1), contact on."""
+    shape, (s1, s2) = _figure_eight(eps, 3 * eps)
+    rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
+    rod.clamp("start").clamp("end")
+    sn = rod.mesh.s_nodes
+    rod.add_force(float(sn[np.argmin(abs(sn - s1))]), [0.0, 0.0, -2.0])
+    rod.add_force(float(sn[np.argmin(abs(sn - s2))]), [0.0, 0.0, 2.0])
+    rod.enable_contact(crossing=crossing)
+    return rod
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("crossing", [False, True])
 def test_crossing_strands_never_converge_through_each_other(crossing):
@@ -377,13 +391,7 @@ def test_crossing_strands_never_converge_through_each_other(crossing):
     from skfem_rod.augmented import OVERLAP_FAIL
     from skfem_rod.contact.crossing import min_distance
     eps = 0.01
-    shape, (s1, s2) = _figure_eight(eps, 3 * eps)
-    rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
-    rod.clamp("start").clamp("end")
-    sn = rod.mesh.s_nodes
-    rod.add_force(float(sn[np.argmin(abs(sn - s1))]), [0.0, 0.0, -2.0])
-    rod.add_force(float(sn[np.argmin(abs(sn - s2))]), [0.0, 0.0, 2.0])
-    rod.enable_contact(crossing=crossing)
+    rod = pressed_figure_eight(eps, crossing)
     tol = rod.contact.tolerance * eps
     res = rod.solve(4)
     assert len(res.steps) > 1

@@ -77,6 +77,22 @@ def test_generalized_jacobian_matches_finite_differences(seed, friction, curve):
         _check_jacobian(rng, p, r, R, friction)
 
 
+def assert_jacobian(p, ev, cs, residuals, r, R, lam, dy, dl, h=1e-7):
+    """The exact generalized Jacobian (no regularization of the active
+    rows) times ``(dy, dl)`` against the central difference of ``(G, C) =
+    residuals(r, R, lam)`` at ``(r, R, lam)``; returns the difference of
+    ``C``."""
+    plus = residuals(*p.update(r, R, dy, h), lam + h * dl)
+    minus = residuals(*p.update(r, R, dy, -h), lam - h * dl)
+    fd_G = (plus[0] - minus[0]) / (2 * h)
+    fd_C = (plus[1] - minus[1]) / (2 * h)
+    J_G = ev.tangent @ dy + cs.K_yl @ dl
+    J_C = cs.K_ly @ dy + cs.D @ dl
+    assert np.abs(fd_G - J_G).max() <= 1e-6 * np.abs(fd_G).max()
+    assert np.abs(fd_C - J_C).max() <= 1e-6 * np.abs(fd_C).max()
+    return fd_C
+
+
 def _check_jacobian(rng, p, r, R, friction):
     ev = p.evaluate(r, R, 0.0)
     cs = nonsmooth.contact_blocks(p, ev)
@@ -97,16 +113,7 @@ def _check_jacobian(rng, p, r, R, friction):
     dy.reshape(-1, 6)[:, 3:] *= 0.3
     dl = 0.01 * rng.normal(size=lam.size)
     dl[ns:] *= 0.3
-    h = 1e-7
-    plus = _residuals(p, *p.update(r, R, dy, h), lam + h * dl)
-    minus = _residuals(p, *p.update(r, R, dy, -h), lam - h * dl)
-    fd_G = (plus[0] - minus[0]) / (2 * h)
-    fd_C = (plus[1] - minus[1]) / (2 * h)
-    # the exact generalized Jacobian (no regularization of the active rows)
-    J_G = ev.tangent @ dy + cs.K_yl @ dl
-    J_C = cs.K_ly @ dy + cs.D @ dl
-    assert np.abs(fd_G - J_G).max() <= 1e-6 * np.abs(fd_G).max()
-    assert np.abs(fd_C - J_C).max() <= 1e-6 * np.abs(fd_C).max()
+    fd_C = assert_jacobian(p, ev, cs, lambda *a: _residuals(p, *a), r, R, lam, dy, dl)
     # each block on its own: the normal multipliers, the friction
     # multipliers (a wrong block would not hide behind another).  G and C
     # are piecewise linear in the normal multipliers (the radius of the

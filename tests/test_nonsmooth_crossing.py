@@ -12,8 +12,9 @@ from skfem_rod import nonsmooth
 from skfem_rod.contact.crossing import crossing_pairs, crossing_work, min_distance
 from skfem_rod.problem import Problem
 
-from test_core import _figure_eight
+from test_core import _figure_eight, pressed_figure_eight
 from test_crossing import EPS as UNIT, _WIDE, two_strands
+from test_nonsmooth import assert_jacobian
 
 
 @pytest.mark.parametrize("degrees, seed", [(26.0, 0), (28.0, 1), (29.5, 2)])
@@ -99,15 +100,7 @@ def test_generalized_jacobian_with_a_crossing_pair(seed):
     dy = rng.normal(size=p.mesh.n_dofs)
     dy.reshape(-1, 6)[:, 3:] *= 0.3
     dl = 0.01 * rng.normal(size=x.size)
-    h = 1e-7
-    plus = _residuals(p, cp, *p.update(r, R, dy, h), x + h * dl)
-    minus = _residuals(p, cp, *p.update(r, R, dy, -h), x - h * dl)
-    fd_G = (plus[0] - minus[0]) / (2 * h)
-    fd_C = (plus[1] - minus[1]) / (2 * h)
-    J_G = ev.tangent @ dy + cs.K_yl @ dl
-    J_C = cs.K_ly @ dy + cs.D @ dl
-    assert np.abs(fd_G - J_G).max() <= 1e-6 * np.abs(fd_G).max()
-    assert np.abs(fd_C - J_C).max() <= 1e-6 * np.abs(fd_C).max()
+    assert_jacobian(p, ev, cs, lambda *a: _residuals(p, cp, *a), r, R, x, dy, dl)
     # the crossing pair's own entries: its multiplier alone
     e = np.zeros_like(x)
     e[-1] = 1.0
@@ -130,13 +123,7 @@ def test_pressed_crossing_needs_no_uzawa_update():
     eps = 0.01
     figures = {}
     for mode in ("uzawa", "newton"):
-        shape, (s1, s2) = _figure_eight(eps, 3 * eps)
-        rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
-        rod.clamp("start").clamp("end")
-        sn = rod.mesh.s_nodes
-        rod.add_force(float(sn[np.argmin(abs(sn - s1))]), [0.0, 0.0, -2.0])
-        rod.add_force(float(sn[np.argmin(abs(sn - s2))]), [0.0, 0.0, 2.0])
-        rod.enable_contact(crossing=True)
+        rod = pressed_figure_eight(eps, crossing=True)
         res = rod.solve(4, path=[0, 0.1], contact_solve=mode)
         assert res.converged, res.message
         pen = [min_distance(rod.mesh, st.r, eps, rod.contact.exclusion).penetration(eps) / eps
