@@ -402,11 +402,12 @@ def contact_newton(problem, r, R, lam, opts, prescribed=None):
     ``Problem.friction_unknowns`` carry their Jacobian).  A solve that
     fails puts the multipliers back as they were."""
     saved = problem.multipliers.copy()
-    if opts.contact_solve == "newton_normal":
-        out = _contact_newton(problem, r, R, lam, opts, prescribed)
-    else:
-        with problem.friction_unknowns():
+    with problem.crossing_unknowns():
+        if opts.contact_solve == "newton_normal":
             out = _contact_newton(problem, r, R, lam, opts, prescribed)
+        else:
+            with problem.friction_unknowns():
+                out = _contact_newton(problem, r, R, lam, opts, prescribed)
     if not out[3].converged:
         # a failed solve leaves the multipliers as it found them (the
         # gradient flow falls back on its own state at those)

@@ -59,7 +59,8 @@ class ContactEvaluation:
     crossing_gap: np.ndarray = None
     offset: np.ndarray = None        # per slave pair
     #: ``(m, n)`` the crossing pairs' weight derivatives ``dw/dq`` on the
-    #: contact curve's dofs (with the tangent; :func:`crossing_work`)
+    #: contact curve's dofs (with the tangent, inside
+    #: :meth:`Problem.crossing_unknowns`; :func:`crossing_work`), else None
     crossing_dw: object = None
 
 
@@ -230,6 +231,7 @@ class Problem:
         #: the friction output carries the multipliers' Jacobian (inside
         #: :meth:`friction_unknowns`: the generalized Newton)
         self.friction_jacobian = False
+        self.crossing_jacobian = False
         #: what Problem.factor derives from the tangent's pattern, one per
         #: mask of held dofs (the supports', and the position correction's
         #: with every spin held: Newton alternates them)
@@ -315,6 +317,17 @@ class Problem:
             yield self
         finally:
             self.friction_jacobian = before
+
+    @contextmanager
+    def crossing_unknowns(self):
+        """Evaluations inside the ``with`` block return the crossing pairs'
+        weight derivatives (``ContactEvaluation.crossing_dw``: the
+        generalized Newton solves for their multipliers); as before after."""
+        before, self.crossing_jacobian = self.crossing_jacobian, True
+        try:
+            yield self
+        finally:
+            self.crossing_jacobian = before
 
     def push(self, r, R, mode, size):
         """``(r, R)`` moved along ``mode`` (dof basis; e.g. an unstable mode)
@@ -507,13 +520,13 @@ class Problem:
             off = m.crossing_offsets(cp.key)
             out = crossing_work(mesh, r, cp, lam, c.crossing_penalty / m.crossing_scale,
                                 c.radius, tangent, fade=not frozen, offset=off,
-                                weight_rows=tangent)
+                                weight_rows=tangent and self.crossing_jacobian)
             ec, fc, Kc, fNc = out[:4]
             force = force + fc
             if tangent:
                 K = K + Kc
             ce.crossing, ce.crossing_fN, ce.energy = cp, fNc, ce.energy + ec
-            ce.crossing_dw = out[4] if tangent else None
+            ce.crossing_dw = out[4] if len(out) > 4 else None
             # a fading pair's offset fades with it (crossing_work)
             ce.crossing_gap = 2.0 * c.radius + cp.weight * off - cp.distance
             tm["crossing"] += time.perf_counter() - t3

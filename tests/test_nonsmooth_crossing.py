@@ -89,7 +89,8 @@ def test_generalized_jacobian_with_a_crossing_pair(seed):
     cp = ev.contact.crossing
     assert cp.size == 1 and cp.weight[0] == 1.0
     p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]))
-    ev = p.evaluate(r, R, 0.0)
+    with p.crossing_unknowns():
+        ev = p.evaluate(r, R, 0.0)
     cp = ev.contact.crossing
     cs = nonsmooth.contact_blocks(p, ev, crossing=True)
     x = nonsmooth.unknowns(p, cp)
@@ -163,7 +164,9 @@ def test_generalized_jacobian_with_a_fading_crossing_pair(monkeypatch):
     cp = p.evaluate(r, R, 0.0).contact.crossing
     assert cp.size == 1 and 0.05 < cp.weight[0] < 0.95
     p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]))
-    ev = p.evaluate(r, R, 0.0)
+    assert p.evaluate(r, R, 0.0).contact.crossing_dw is None      # only where asked
+    with p.crossing_unknowns():                        # as in the generalized Newton
+        ev = p.evaluate(r, R, 0.0)
     cp = ev.contact.crossing
     assert ev.contact.crossing_dw.nnz > 0
     cs = nonsmooth.contact_blocks(p, ev, crossing=True)
