@@ -184,3 +184,25 @@ def test_public_api_docstring_examples_pass(tmp_path, monkeypatch):
             runner.run(test)
     assert n > 20
     assert runner.failures == 0, "docstring examples failed (see the output above)"
+
+
+def control_characters(text):
+    """``(line, character)`` of every C0 control character in ``text``
+    but the newline (a TeX escape written through a Python string becomes
+    one: ``\\v``arepsilon, ``\\t``o, ``\\a``pprox), which the strict build
+    renders without a warning."""
+    return [(text.count("\n", 0, m.start()) + 1, repr(m.group()))
+            for m in re.finditer(r"[\x00-\x09\x0b-\x1f\x7f]", text)]
+
+
+def test_pages_hold_no_control_characters():
+    """The documentation, the README and the benchmark results are plain
+    text: no tab, no vertical tab, no bell (a script once wrote
+    ``$\\varepsilon$`` into docs/contact-solve.md as a vertical tab and
+    ``arepsilon``)."""
+    assert control_characters("$s \x07pprox 0.15$, $10^{-3}\x0barepsilon$") == \
+        [(1, repr("\x07")), (1, repr("\x0b"))]
+    pages = sorted(DOCS.rglob("*.md")) + [ROOT / "README.md"] + \
+        sorted((ROOT / "benchmarks").glob("*.md"))
+    bad = {str(p.relative_to(ROOT)): control_characters(p.read_text()) for p in pages}
+    assert {k: v for k, v in bad.items() if v} == {}
