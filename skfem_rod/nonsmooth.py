@@ -503,9 +503,15 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         if ev.tangent is None:
             ev = problem.evaluate(r, R, lam)
         alphas.append(alpha)
+        # the multipliers' update as the gap it moves (their compliance),
+        # in rod lengths: per unit length at the slave points, a point
+        # force at the crossing pairs
+        nc = 0 if pairs is None else pairs.size
+        gaps = np.abs(alpha * dl) * c.penalty
+        if nc:
+            gaps[-nc:] *= c.crossing_penalty / (m.crossing_scale * c.penalty)
         last_update = max(update_size(problem, alpha * dy),
-                          float(np.abs(alpha * dl).max(initial=0.0)) * c.penalty
-                          / problem.rod.length)
+                          float(gaps.max(initial=0.0)) / problem.rod.length)
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
     return _fail(r, R, lam, history, opts.max_iterations,
