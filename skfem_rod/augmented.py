@@ -205,7 +205,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             # the force each pair applied: a fading pair gives its
             # multiplier up with its weight (docs/crossing-contact.md, 4)
             m.rekey_crossing(ce.crossing.key, ce.crossing.weight * uzawa_update(
-                dc, old, c.crossing_penalty / m.crossing_scale))
+                dc, old, problem.crossing_compliance()))
             if c.penalty_growth > 1:
                 last_crossing = adapt_crossing_penalty(problem, ce, dc, last_crossing)
         uzawa += 1

@@ -224,7 +224,7 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
     opened = float(np.max(-d[ce.fN > 0], initial=0.0))
     nf = ns + 3 * ns * len(laws)                 # where the crossing block starts
     if cp is not None:
-        mu_c = c.crossing_penalty / m.crossing_scale
+        mu_c = problem.crossing_compliance()
         dc = ce.crossing_gap
         act_c = (dc + mu_c * lam_c) > 0
         active[nf + np.flatnonzero(act_c)] = True
@@ -506,10 +506,10 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         # the multipliers' update as the gap it moves (their compliance),
         # in rod lengths: per unit length at the slave points, a point
         # force at the crossing pairs
-        nc = 0 if pairs is None else pairs.size
-        gaps = np.abs(alpha * dl) * c.penalty
-        if nc:
-            gaps[-nc:] *= c.crossing_penalty / (m.crossing_scale * c.penalty)
+        compliance = np.full(dl.size, c.penalty)
+        if pairs is not None and pairs.size:
+            compliance[-pairs.size:] = problem.crossing_compliance()
+        gaps = np.abs(alpha * dl) * compliance
         last_update = max(update_size(problem, alpha * dy),
                           float(gaps.max(initial=0.0)) / problem.rod.length)
         remaining = remaining * (1.0 - alpha)

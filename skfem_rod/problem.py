@@ -318,6 +318,11 @@ class Problem:
         finally:
             self.friction_jacobian = before
 
+    def crossing_compliance(self):
+        """The crossing pairs' compliance ``mu_c``: the contact option
+        ``crossing_penalty`` at the multipliers' adaptive factor."""
+        return self.contact.crossing_penalty / self.multipliers.crossing_scale
+
     @contextmanager
     def crossing_unknowns(self):
         """Evaluations inside the ``with`` block return the crossing pairs'
@@ -518,8 +523,7 @@ class Problem:
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             off = m.crossing_offsets(cp.key)
-            out = crossing_work(mesh, r, cp, lam, c.crossing_penalty / m.crossing_scale,
-                                c.radius, tangent, fade=not frozen, offset=off,
+            out = crossing_work(mesh, r, cp, lam, self.crossing_compliance(), c.radius, tangent, fade=not frozen, offset=off,
                                 weight_rows=tangent and self.crossing_jacobian)
             ec, fc, Kc, fNc = out[:4]
             force = force + fc

@@ -1157,11 +1157,10 @@ def gap_gradients(mesh, pairs):
     """The derivative of each pair's distance ``l`` with respect to the
     position dofs of its two elements at fixed weight (the row ``dl/dq``
     of :func:`crossing_work`): ``(dofs, dl)``, both ``(m, 24)``."""
-    l = pairs.distance if pairs.length is None else pairs.length
     Nu = shape_functions(pairs.u)[0].T
     Nv = shape_functions(pairs.v)[0].T
-    aD = np.concatenate([Nu, -Nv], axis=1)
-    lq = _outer(aD, pairs.normal * l[:, None]) / l[:, None]
+    # d (l^2 / 2) / dq = (X - Y) . delta(X - Y), divided by l
+    lq = _outer(np.concatenate([Nu, -Nv], axis=1), pairs.normal)
     nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
     dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(pairs.size, 24)
     return dofs, lq
@@ -1216,10 +1215,7 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
     aD = np.concatenate([Nu, -Nv], axis=1)                        # (m, 8): delta D
     aX1 = np.concatenate([dNu, z], axis=1)                        # delta X'
     aY1 = np.concatenate([z, dNv], axis=1)                        # delta Y'
-    Fq = _outer(aD, D)                                            # dF/dq, F = l^2 / 2
-    lq = Fq / l[:, None]
-    nodes = np.concatenate([mesh.nodes[pairs.e], mesh.nodes[pairs.f]], axis=1)
-    dofs = (6 * nodes[:, :, None] + np.arange(3)).reshape(m, 24)
+    dofs, lq = gap_gradients(mesh, pairs)                         # dl/dq
     force = np.bincount(dofs.ravel(), weights=(-(w * fN)[:, None] * lq).ravel(), minlength=n)
     if not tangent:
         return energy, force, None, w * fN
