@@ -63,7 +63,9 @@ def run(gamma=0.0, elements=60, steps=10, pull=0.2, options=None, contact=None,
     res, rows = sol["result"], sol["rows"]
     F = np.array([w["force"] for w in rows])
     pairs = [(i, j) for i, j in knot.same_load_pairs(rows) if rows[i]["load_factor"] > 0]
-    gaps = np.array([abs(F[i] - F[j]) for i, j in pairs]) / np.abs(F).max()
+    # no pair of steps (a cycle stopped before it turned back): no mismatch
+    gaps = (np.array([abs(F[i] - F[j]) for i, j in pairs]) / np.abs(F).max()
+            if pairs else np.zeros(0))
     mismatch = gaps.max() if gaps.size else np.nan
     steps_ = res.steps
     return dict(gamma=gamma, elements=elements, steps=steps, options=options or {},

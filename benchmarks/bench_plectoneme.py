@@ -110,6 +110,9 @@ def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped
         recs.append(dict(turns=st.load_factor * turns, x_end=float(st.r[rod.node("end"), 0]),
                          torque=float(result.reaction("end", k)[1][0]),
                          contacts=int(c.s.size), penetration=float(c.penetration) / RADIUS,
+                         crossing=0 if c.crossing is None else int(c.crossing.s.size),
+                         crossing_force=0.0 if c.crossing is None
+                         else c.crossing.total_force,
                          true_penetration=(2 * RADIUS - c.min_distance) / RADIUS
                          if c.min_distance is not None else None,
                          wall=time.perf_counter() - t0))
@@ -118,6 +121,7 @@ def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped
             dyn = getattr(result, "dynamics", None)
             print(f"  {k:3d}: {r['turns']:6.3f} turns  x_end={r['x_end']:.4f}  "
                   f"M={r['torque']:.4f}  contacts={r['contacts']:3d}  "
+                  f"crossing={r['crossing']:2d} ({r['crossing_force']:6.2f})  "
                   f"damped={dyn.damped_steps if dyn else 0:4d}  {r['wall']:.1f} s", flush=True)
 
     result = rod.solve(n_steps, dynamics=True, callback=callback,

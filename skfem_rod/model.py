@@ -999,9 +999,13 @@ class Rod:
             Start step 0 from this state instead of the reference: the last
             step of a Result (of a rod with the same mesh), or nodal
             positions ``(n, 3)`` and rotations ``(n, 3, 3)``.  Step 0 is then
-            an equilibrium solve at load factor 0 (with contact multipliers;
-            slips of friction are measured from the start), e.g. a knot tied
-            without friction and then pulled with it.
+            an equilibrium solve at load factor 0, with the contact
+            multipliers that give a Result's recorded contact forces (slave
+            points, crossing pairs, and the friction forces when both have
+            friction: a converged state starts in balance,
+            :func:`skfem_rod.solver.carry_multipliers`); slips of friction
+            are measured from the start.  E.g. a knot tied without friction
+            and then pulled with it.
         **options
             See :class:`skfem_rod.solver.SolverOptions` (``rtol``,
             ``max_iterations``, ``line_search``, ``min_step``, ...).

@@ -58,6 +58,7 @@ class ContactEvaluation:
     gap: np.ndarray = None
     crossing_gap: np.ndarray = None
     offset: np.ndarray = None        # per slave pair
+    crossing_offset: np.ndarray = None   # per crossing pair
     #: ``(m, n)`` the crossing pairs' weight derivatives ``dw/dq`` on the
     #: contact curve's dofs (with the tangent, inside
     #: :meth:`Problem.crossing_unknowns`; :func:`crossing_work`), else None
@@ -533,6 +534,7 @@ class Problem:
             ce.crossing_dw = out[4] if len(out) > 4 else None
             # a fading pair's offset fades with it (crossing_work)
             ce.crossing_gap = 2.0 * c.radius + cp.weight * off - cp.distance
+            ce.crossing_offset = off
             tm["crossing"] += time.perf_counter() - t3
         return ce, force, K
 

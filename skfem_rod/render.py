@@ -37,7 +37,7 @@ import numpy as np
 from .export import atomic_path, validate_points_frames
 
 __all__ = ["tube_mesh", "render_rod", "ROD_COLOR", "STRIPE_COLOR", "STATE_NAMES",
-           "STATE_COLORS", "CONTACT_COLOR", "contact_state_colors", "render_contact_states",
+           "STATE_COLORS", "CONTACT_COLOR", "CROSSING_COLOR", "contact_state_colors", "render_contact_states",
            "render_animation", "quiet_vtk"]
 
 ROD_COLOR = "#4f81bd"       # base colour of the tube (blue)
@@ -45,6 +45,9 @@ STRIPE_COLOR = "#d62728"    # material line along d1 (red)
 #: Colour of frictionless contact points (purple: green and orange are the
 #: stick and slip of :data:`STATE_COLORS`, one code in every picture).
 CONTACT_COLOR = "#9467bd"
+#: Colour of the crossing pairs' contact points (pink: point forces of
+#: crossing strands, which carry no friction; :meth:`skfem_rod.Result.crossing_points`).
+CROSSING_COLOR = "#e377c2"
 GLYPH_COLOR = "#222222"     # forces (black arrows)
 MOMENT_COLOR = "#8c564b"    # moments (brown double arrows)
 SUPPORT_COLOR = "#555555"   # clamps (blocks) and pins (balls)
@@ -635,7 +638,8 @@ def tube_point_values(values, n, m, capped=True):
 
 
 def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
-               contact_points=None, contact_colors=None, contact_states=None, glyphs=None,
+               contact_points=None, contact_colors=None, contact_states=None,
+               crossing_points=None, glyphs=None,
                title=None, background="white", camera="iso", color=ROD_COLOR,
                stripe_color=STRIPE_COLOR, stripe_width=0.35, n_around=48,
                contact_radius=None, zoom=None, off_screen=None, reference=None,
@@ -663,6 +667,10 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
         Instead of ``contact_colors``: the friction state of each point
         (0 open, 1 stick, 2 slip), coloured by :data:`STATE_COLORS` and
         named in the legend.
+    crossing_points : array_like (k, 3), optional
+        Contact points of crossing pairs (point forces of crossing strands,
+        :meth:`skfem_rod.Result.crossing_points`), drawn as spheres of
+        ``contact_radius`` in :data:`CROSSING_COLOR`.
     glyphs : dict, optional
         Arrows: ``points`` (k, 3), ``vectors`` (k, 3), optional ``color``
         and ``scale`` (arrow length = ``scale * |vector|``; default: the
@@ -730,8 +738,8 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
     """
     img = _rod_image(points, frames, radius, window_size=window_size,
                      contact_points=contact_points, contact_colors=contact_colors,
-                     contact_states=contact_states, glyphs=glyphs, title=title,
-                     background=background, camera=camera, color=color,
+                     contact_states=contact_states, crossing_points=crossing_points,
+                     glyphs=glyphs, title=title, background=background, camera=camera, color=color,
                      stripe_color=stripe_color, stripe_width=stripe_width, n_around=n_around,
                      contact_radius=contact_radius, zoom=zoom, reference=reference,
                      supports=supports, loads=loads, scalars=scalars, cmap=cmap, clim=clim,
@@ -744,7 +752,8 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
 
 
 def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_points=None,
-               contact_colors=None, contact_states=None, glyphs=None, title=None,
+               contact_colors=None, contact_states=None, crossing_points=None, glyphs=None,
+               title=None,
                background="white", camera="iso", color=ROD_COLOR, stripe_color=STRIPE_COLOR,
                stripe_width=0.35, n_around=48, contact_radius=None, zoom=None,
                reference=None, supports=None, loads=None, scalars=None, cmap="viridis",
@@ -830,12 +839,13 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
                     fit_pts.append(moments.points)
                     entries.append(("double", MOMENT_COLOR, "moment"))
 
+            rad = float(contact_radius) if contact_radius is not None else 1.25 * r.max()
+            if (contact_points is not None or crossing_points is not None) \
+                    and not (np.isfinite(rad) and rad > 0):
+                raise ValueError(f"contact_radius = {contact_radius!r}; expected > 0")
             if contact_points is not None:
                 cp = _as_points("contact_points", contact_points)
                 if len(cp):
-                    rad = float(contact_radius) if contact_radius is not None else 1.25 * r.max()
-                    if not (np.isfinite(rad) and rad > 0):
-                        raise ValueError(f"contact_radius = {contact_radius!r}; expected > 0")
                     cloud = pv.PolyData(cp)
                     if contact_states is not None:
                         rgb = contact_state_colors(contact_states)
@@ -857,6 +867,16 @@ def _rod_image(points, frames, radius, *, window_size=(1024, 768), contact_point
                     pl.add_mesh(spheres, smooth_shading=True, show_scalar_bar=False,
                                 ambient=0.2, **kw)
                     fit_pts.append(spheres.points)
+            if crossing_points is not None:
+                xp = _as_points("crossing_points", crossing_points)
+                if len(xp):
+                    spheres = pv.PolyData(xp).glyph(
+                        geom=pv.Sphere(radius=rad, theta_resolution=20, phi_resolution=20),
+                        scale=False, orient=False)
+                    pl.add_mesh(spheres, color=CROSSING_COLOR, smooth_shading=True,
+                                ambient=0.2)
+                    fit_pts.append(spheres.points)
+                    entries.append(("dot", CROSSING_COLOR, "crossing pair"))
 
             if glyphs is not None:
                 arrows = _arrow_mesh(pv, glyphs, points)

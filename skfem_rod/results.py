@@ -32,6 +32,35 @@ class Step:
 
 
 @dataclass
+class CrossingContact:
+    """The crossing pairs that carry force at a converged step (contact
+    option ``crossing``): point-to-point pairs at the local minima of the
+    distance between two strands, both parameters free
+    (:mod:`skfem_rod.contact.crossing`, docs/crossing-contact.md).  Their
+    forces are point forces (not per unit length, unlike
+    :class:`ContactState`'s), each already times its pair's weight; a
+    crossing pair carries no friction."""
+    s: np.ndarray            # (k,) arclength of the first point
+    s_bar: np.ndarray        # (k,) arclength of the second point
+    force: np.ndarray        # (k,) point force w f_N pressing the strands apart
+    weight: np.ndarray       # (k,) the pair's weight w: 1 at a crossing, fading to 0
+                             # where the strands run parallel (line contact)
+    gap: np.ndarray          # (k,) d = 2 eps + w offset - distance (positive: penetration)
+    normal: np.ndarray       # (k, 3) unit vector from the second point to the first
+    offset: np.ndarray       # (k,) gap offsets (augmented.adjust_offsets)
+    angle: np.ndarray        # (k,) effective angle between the strands (radians)
+    #: ``(k, 5)`` the places the pairs' multipliers are carried by
+    #: (:func:`skfem_rod.contact.crossing.carry`): what a solve started
+    #: from this step (``Rod.solve(start=...)``) starts its pairs from
+    key: np.ndarray
+
+    @property
+    def total_force(self):
+        """Sum of the point forces (each pair once)."""
+        return float(np.sum(self.force))
+
+
+@dataclass
 class ContactState:
     """Active contact points of a converged step (one row per slave point
     with a positive normal force)."""
@@ -59,6 +88,9 @@ class ContactState:
     #: in contact at the distance 2 eps + offset, where the centrelines dip
     #: below 2 eps between slave points
     offset: np.ndarray = None
+    #: :class:`CrossingContact`: the crossing pairs carrying force (contact
+    #: option ``crossing``; None without it)
+    crossing: CrossingContact = None
 
     @property
     def friction(self):
@@ -149,6 +181,15 @@ class Result:
             uzawa_converged=bool(report.uzawa_converged),
             newton_total=int(report.newton_total or report.iterations),
             candidates=int(pairs.n_candidates), min_distance=report.min_distance)
+        cp = ce.crossing
+        if cp is not None:
+            on = ce.crossing_fN > 0
+            key = np.array(cp.key[on], dtype=float).reshape(-1, cp.key.shape[1])
+            key[:, 4] = -1.0                  # no held index outside the solve
+            contact.crossing = CrossingContact(
+                s=cp.s[on], s_bar=cp.s_bar[on], force=ce.crossing_fN[on],
+                weight=cp.weight[on], gap=ce.crossing_gap[on], normal=cp.normal[on],
+                offset=ce.crossing_offset[on], angle=cp.beta[on], key=key)
         fr = ce.friction
         if fr is not None:
             w = pairs.weight[fr.index]
@@ -406,7 +447,9 @@ class Result:
     def point_data(self, step=-1, per_element=8):
         """Sampled fields of a step and the point data written to VTU files
         (arclength, resultants ``n``, ``m``, strains ``v``, ``u``, twist strain,
-        and ``contact_force`` when contact is on).
+        and ``contact_force`` when contact is on; ``crossing_force``, the point
+        forces of the crossing pairs at the samples nearest to their two
+        points, with the contact option ``crossing``).
 
         Returns
         -------
@@ -433,6 +476,16 @@ class Result:
                 k = np.abs(f["s"][None, :] - c.s[:, None]).argmin(axis=1)
                 np.maximum.at(fc, k, c.force)
             data["contact_force"] = fc
+            if self.rod.contact.crossing:
+                # point forces of the crossing pairs, at the sample nearest
+                # to each of a pair's two points
+                xf = np.zeros(len(f["s"]))
+                cr = None if c is None else c.crossing
+                if cr is not None and cr.s.size:
+                    at = np.r_[cr.s, cr.s_bar]
+                    k = np.abs(f["s"][None, :] - at[:, None]).argmin(axis=1)
+                    np.maximum.at(xf, k, np.r_[cr.force, cr.force])
+                data["crossing_force"] = xf
         return f, data
 
     def write_vtu(self, path, step=-1, per_element=8):
@@ -577,13 +630,37 @@ class Result:
             return np.zeros((0, 3))
         return self.evaluate(c.s, step)["r"]
 
+    def crossing_points(self, step=-1):
+        """Where the crossing pairs of a step that carry force act, ``(k, 3)``:
+        the midpoint of each pair's two centreline points, on the tubes'
+        surfaces where they touch (empty without contact or without the
+        contact option ``crossing``).  :attr:`ContactState.crossing` holds
+        their forces.
+
+        Examples
+        --------
+        >>> from skfem_rod import Rod, Section, geometry
+        >>> rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+        >>> rod = rod.clamp("start").enable_contact(crossing=True)
+        >>> result = rod.add_force("end", [0.0, 0.01, 0.0]).solve(2)
+        >>> result.crossing_points().shape
+        (0, 3)
+        """
+        c = self._step(step).contact
+        if c is None or c.crossing is None or c.crossing.s.size == 0:
+            return np.zeros((0, 3))
+        cr = c.crossing
+        return 0.5 * (self.evaluate(cr.s, step)["r"] + self.evaluate(cr.s_bar, step)["r"])
+
     def render(self, filename, step=-1, radius=None, per_element=8, **kwargs):
         """Offscreen PNG of the rod at a step as a tube with a stripe along
         ``d1``, with the reference shape (step 0) as a grey ghost, the
         supports and the point loads of the step, and an axes triad; active
         contact points are marked (unless ``contact_points`` is given):
         frictionless purple, or coloured by state with friction on (stick
-        green, slip orange, see :func:`skfem_rod.render.contact_state_colors`).
+        green, slip orange, see :func:`skfem_rod.render.contact_state_colors`),
+        and the crossing pairs carrying force (:meth:`crossing_points`) in
+        :data:`skfem_rod.render.CROSSING_COLOR`.
         ``color_by="moment_magnitude"`` (or any scalar field of
         :meth:`to_pyvista`: ``twist``, ``curvature``, ``contact_force`` ...)
         colours the tube by that field, with a colour bar.
@@ -618,13 +695,18 @@ class Result:
         f = self.sample(per_element, step)
         if radius is None:
             radius = self.rod.section.radius or 0.01 * self.rod.length
-        if "contact_points" not in kwargs:
+        given = "contact_points" in kwargs
+        if not given:
             pts = self.contact_points(step)
             if len(pts):
                 kwargs["contact_points"] = pts
                 if (self.steps[step].contact.friction and "contact_colors" not in kwargs
                         and "contact_states" not in kwargs):
                     kwargs["contact_states"] = self.contact_states(step)
+        if "crossing_points" not in kwargs and not given:
+            pts = self.crossing_points(step)
+            if len(pts):
+                kwargs["crossing_points"] = pts
         color_by = kwargs.pop("color_by", None)
         if color_by is not None and "scalars" not in kwargs:
             kwargs["scalars"] = self._line_fields(f, step)[color_by]

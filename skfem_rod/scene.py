@@ -1066,6 +1066,9 @@ def step_figures(step, index):
         row.update(newton_iterations=c.newton_total, uzawa_iterations=c.uzawa,
                    active_contacts=int(c.force.size), penetration=c.penetration,
                    contact_force=c.total_force, uzawa_converged=c.uzawa_converged)
+        if c.crossing is not None:
+            row.update(crossing_pairs=int(c.crossing.force.size),
+                       crossing_force=c.crossing.total_force)
     return row
 
 
@@ -1099,6 +1102,11 @@ def summary(scene, result, wall_time=None):
                 s=c.s, s_bar=c.s_bar, force=c.force, gap=c.gap,
                 points=result.contact_points(), total_force=c.total_force,
                 penetration=c.penetration)
+            if c.crossing is not None:
+                x = c.crossing
+                out["end_state"]["contact"]["crossing"] = dict(
+                    s=x.s, s_bar=x.s_bar, force=x.force, weight=x.weight, gap=x.gap,
+                    points=result.crossing_points(), total_force=x.total_force)
     return out
 
 

@@ -244,6 +244,17 @@ def test_tube_mesh_geometry():
         tube_mesh(points, frames, 0.1, n_around=2)
 
 
+def near(image, hexcolor):
+    """Pixels of ``image`` (floats in [0, 1]) of the hue ``hexcolor`` up to
+    shading (the normalised colour directions compared)."""
+    flat = image.reshape(-1, 3)
+    rgb = np.array([int(hexcolor[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
+    unit = rgb / np.linalg.norm(rgb)
+    norm = np.linalg.norm(flat, axis=1)
+    cos = np.sum(flat * unit, axis=1) / np.maximum(norm, 1e-9)
+    return ((cos > 0.995) & (norm > 0.2)).reshape(image.shape[:2])
+
+
 def test_render_rod_twisted_png(tmp_path):
     pytest.importorskip("pyvista")
     import matplotlib.image as mpimg
@@ -263,15 +274,6 @@ def test_render_rod_twisted_png(tmp_path):
     img = mpimg.imread(target)[..., :3]  # floats in [0, 1]
     assert img.shape[:2] == (size[1], size[0])
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 10  # not all one colour
-
-    def near(image, hexcolor):
-        flat = image.reshape(-1, 3)
-        rgb = np.array([int(hexcolor[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
-        # same hue up to shading: compare the normalised colour directions
-        unit = rgb / np.linalg.norm(rgb)
-        norm = np.linalg.norm(flat, axis=1)
-        cos = np.sum(flat * unit, axis=1) / np.maximum(norm, 1e-9)
-        return ((cos > 0.995) & (norm > 0.2)).reshape(image.shape[:2])
 
     stripe = near(img, STRIPE_COLOR)
     tube = near(img, ROD_COLOR)
