@@ -319,6 +319,28 @@ class Problem:
         finally:
             self.friction_jacobian = before
 
+    def crossing_reach(self):
+        """How far apart the strands may be at a crossing pair of an
+        evaluation: ``2 eps + mu_c max(lambda_c) + max(offset)`` (beyond, the
+        point law ``[d + mu_c lambda]_+`` gives no force at any of the
+        carried multipliers and offsets) plus :data:`CROSSING_MARGIN` ``eps``.
+
+        A pair beyond it would add nothing to the residual or the tangent,
+        and its multiplier, were it carried, is back by place when it comes
+        within reach (:func:`skfem_rod.contact.crossing.carry`).  (One path
+        can differ: a held pair whose minimum moved beyond the reach within
+        a solve is not found, and may follow another minimum within its
+        carry radius, taking its multiplier there; the loop's tolerances
+        judge the state either way.)  Before, the
+        reach was ``3 eps`` at any multiplier: in the plectoneme's snaps 217
+        element pairs on average were solved for their minima per
+        evaluation, against 55 now, for the same pairs carrying force (every
+        recorded state to 1.25 turns the same, bit for bit;
+        benchmarks/RESULTS_plectoneme.md)."""
+        c, m = self.contact, self.multipliers
+        return (2.0 * c.radius + self.crossing_compliance() * float(np.max(m.crossing, initial=0.0))
+                + float(np.max(m.crossing_offset, initial=0.0)) + CROSSING_MARGIN * c.radius)
+
     def crossing_compliance(self):
         """The crossing pairs' compliance ``mu_c``: the contact option
         ``crossing_penalty`` at the multipliers' adaptive factor."""
@@ -518,7 +540,7 @@ class Problem:
         if c.crossing:
             from .contact.crossing import carry, crossing_pairs, crossing_work
             t3 = time.perf_counter()
-            cp = crossing_pairs(mesh, r, c.radius, c.exclusion,
+            cp = crossing_pairs(mesh, r, c.radius, c.exclusion, self.crossing_reach(),
                                 threshold=c.crossing_threshold(),
                                 held=m.held_crossing())
             m.follow_crossing(cp)
@@ -682,6 +704,11 @@ class Problem:
 #: a slave keeps its master element while the projection there is within
 #: this fraction of the contact tolerance of the closest one
 KEEP_MASTER = 0.1
+#: the crossing pairs are looked for up to the distance at which a pair
+#: can carry force at the evaluation's multipliers and offsets, ``2 eps +
+#: mu_c max(lambda_c) + max(offset)``, plus this fraction of ``eps``
+#: (:meth:`Problem.crossing_reach`)
+CROSSING_MARGIN = 0.25
 
 #: nodal move, in contact radii, before the contact search's broad phase is
 #: run again (:class:`skfem_rod.contact.search.NeighbourList`)

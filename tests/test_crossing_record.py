@@ -195,3 +195,31 @@ def test_the_files_carry_the_crossing_forces(solved):
     row = step_figures(res.steps[-1], len(res.steps) - 1)
     assert row["crossing_pairs"] == cr.force.size
     assert row["crossing_force"] == pytest.approx(cr.total_force)
+
+
+@pytest.mark.parametrize("carried", [False, True])
+def test_crossing_pairs_beyond_the_reach_carry_no_force(solved, monkeypatch, carried):
+    """The crossing pairs are looked for up to ``Problem.crossing_reach()``,
+    the distance at which a pair can carry force at the multipliers and
+    offsets of the evaluation (plus a quarter ``eps``), not ``3 eps`` at
+    any multiplier: searched up to ``6 eps`` instead, the evaluation finds
+    more pairs, and the residual and tangent are the same to round-off,
+    at every converged state of the pressed scene, with zero multipliers and
+    with those carried from the last step (``lambda = 0.3``)."""
+    from skfem_rod.solver import carry_multipliers
+    rod, res = solved
+    p = Problem(rod)
+    if carried:
+        carry_multipliers(p, res.steps[-1].contact)
+    assert p.crossing_reach() < 3 * EPS
+    more = 0
+    for st in res.steps:
+        ev = p.evaluate(st.r, st.R, st.load_factor)
+        with monkeypatch.context() as mp:
+            mp.setattr(Problem, "crossing_reach", lambda self: 6 * EPS)
+            wide = p.evaluate(st.r, st.R, st.load_factor)
+        more += wide.contact.crossing.size - ev.contact.crossing.size
+        scale = np.abs(wide.residual).max()
+        assert np.abs(ev.residual - wide.residual).max() <= 1e-13 * scale
+        assert abs(ev.tangent - wide.tangent).max() <= 1e-13 * abs(wide.tangent).max()
+    assert more > 0
