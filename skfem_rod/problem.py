@@ -338,7 +338,8 @@ class Problem:
         recorded state to 1.25 turns the same, bit for bit;
         benchmarks/RESULTS_plectoneme.md)."""
         c, m = self.contact, self.multipliers
-        return (2.0 * c.radius + self.crossing_compliance() * float(np.max(m.crossing, initial=0.0))
+        lam = float(np.max(m.crossing, initial=0.0))
+        return (2.0 * c.radius + self.crossing_compliance() * lam
                 + float(np.max(m.crossing_offset, initial=0.0)) + CROSSING_MARGIN * c.radius)
 
     def crossing_compliance(self):

@@ -37,7 +37,8 @@ import numpy as np
 from .export import atomic_path, validate_points_frames
 
 __all__ = ["tube_mesh", "render_rod", "ROD_COLOR", "STRIPE_COLOR", "STATE_NAMES",
-           "STATE_COLORS", "CONTACT_COLOR", "CROSSING_COLOR", "contact_state_colors", "render_contact_states",
+           "STATE_COLORS", "CONTACT_COLOR", "CROSSING_COLOR", "contact_state_colors",
+           "render_contact_states",
            "render_animation", "quiet_vtk"]
 
 ROD_COLOR = "#4f81bd"       # base colour of the tube (blue)
@@ -46,7 +47,8 @@ STRIPE_COLOR = "#d62728"    # material line along d1 (red)
 #: stick and slip of :data:`STATE_COLORS`, one code in every picture).
 CONTACT_COLOR = "#9467bd"
 #: Colour of the crossing pairs' contact points (pink: point forces of
-#: crossing strands, which carry no friction; :meth:`skfem_rod.Result.crossing_points`).
+#: crossing strands, which carry no friction;
+#: :meth:`skfem_rod.Result.crossing_points`).
 CROSSING_COLOR = "#e377c2"
 GLYPH_COLOR = "#222222"     # forces (black arrows)
 MOMENT_COLOR = "#8c564b"    # moments (brown double arrows)
@@ -739,7 +741,8 @@ def render_rod(filename, points, frames, radius, *, window_size=(1024, 768),
     img = _rod_image(points, frames, radius, window_size=window_size,
                      contact_points=contact_points, contact_colors=contact_colors,
                      contact_states=contact_states, crossing_points=crossing_points,
-                     glyphs=glyphs, title=title, background=background, camera=camera, color=color,
+                     glyphs=glyphs, title=title, background=background, camera=camera,
+                     color=color,
                      stripe_color=stripe_color, stripe_width=stripe_width, n_around=n_around,
                      contact_radius=contact_radius, zoom=zoom, reference=reference,
                      supports=supports, loads=loads, scalars=scalars, cmap=cmap, clim=clim,

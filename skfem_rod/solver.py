@@ -107,7 +107,8 @@ def carry_multipliers(problem, contact):
     solved for the multiplier: ``lambda = f / w - d / mu``, ``w`` a
     crossing pair's weight, 1 at slave points), and, with friction on both
     sides, the friction forces (the carried multipliers of an accepted
-    step, met again at zero slip).  Nothing is carried from another mesh.
+    step, met again at zero slip).  Nothing is carried where the recorded
+    slave points are not this problem's (another mesh).
 
     The gap offsets (:func:`skfem_rod.augmented.adjust_offsets`) are not
     carried, their effect is: ``d`` is the gap without them.  They belong
