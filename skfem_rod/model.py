@@ -1000,9 +1000,9 @@ class Rod:
             step of a Result (of a rod with the same mesh), or nodal
             positions ``(n, 3)`` and rotations ``(n, 3, 3)``.  Step 0 is then
             an equilibrium solve at load factor 0, with the contact
-            multipliers that give a Result's recorded contact forces (slave
-            points, crossing pairs, and the friction forces when both have
-            friction: a converged state starts in balance,
+            multipliers of a Result's last step (the slave points' forces,
+            the crossing pairs' multipliers that give their forces, and the
+            friction forces when both have friction:
             :func:`skfem_rod.solver.carry_multipliers`); slips of friction
             are measured from the start.  E.g. a knot tied without friction
             and then pulled with it.

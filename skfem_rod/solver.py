@@ -100,25 +100,27 @@ def start_state(rod, start):
 
 def carry_multipliers(problem, contact):
     """The multipliers of a converged contact state, so that a solve started
-    from it starts in the balance that solve ended in: at its active slave
-    points (matched by arclength) and its crossing pairs (by place,
+    from it does not begin Uzawa again from zero: at its active slave
+    points (matched by arclength) ``lambda_N = f_N``, the Uzawa update at
+    that state (eq. 4.2a's); at its crossing pairs (by place,
     :func:`skfem_rod.contact.crossing.carry`) the multipliers that give the
-    recorded forces at the recorded state at the nominal penalty (eq. 4.2a
-    solved for the multiplier: ``lambda = f / w - d / mu``, ``w`` a
-    crossing pair's weight, 1 at slave points), and, with friction on both
-    sides, the friction forces (the carried multipliers of an accepted
-    step, met again at zero slip).  Nothing is carried where the recorded
-    slave points are not this problem's (another mesh).
+    recorded point forces at the recorded state, ``lambda = f / w - d / mu``
+    (eq. 4.2a solved for the multiplier at the nominal penalty); and, with
+    friction on both sides, the friction forces (the carried multipliers of
+    an accepted step, met again at zero slip).  Nothing is carried where the
+    recorded slave points are not this problem's (another mesh).
 
-    The gap offsets (:func:`skfem_rod.augmented.adjust_offsets`) are not
-    carried, their effect is: ``d`` is the gap without them.  They belong
-    to the loop that raised them; carried, the tied knot of demos/knot.py
-    did not restart: its loop lowered offsets of points it found standing
-    open, the next pass started from a residual of 1.7 and the step failed
-    where it had converged.  Carried as ``lambda = f`` (before, the Uzawa
-    update), a restart started out of balance by ``d / mu``: in the pressed
-    figure-eight by 40 % of the pressing force, through the crossing pair's
-    stiff point law."""
+    Why the two differ (measured, docs/crossing-contact.md): the crossing
+    pairs' point law is stiff, and their Uzawa update ``lambda = f`` started
+    the pressed figure-eight out of balance by ``d / mu``, 40 % of the
+    pressing force; solved for exactly, it restarts at 1e-9 of it.  At the
+    slave points the gap offsets (:func:`skfem_rod.augmented.adjust_offsets`)
+    are not carried: they belong to the loop that raised them (carried, the
+    tied knot of demos/knot.py failed its step 0, the loop lowering them
+    and the next pass starting from a residual of 1.7), and the slave
+    multipliers solved for exactly with the offsets' effect folded in took
+    the knot's cycles along other paths, 1.4 and 2.3 times as long
+    (benchmarks/RESULTS_knot.md)."""
     if contact is None:
         return
     m, c = problem.multipliers, problem.contact
@@ -127,8 +129,7 @@ def carry_multipliers(problem, contact):
         j = np.minimum(np.searchsorted(s, contact.s), s.size - 1)
         if np.abs(s[j] - contact.s).max() > 1e-12 * problem.rod.length:
             return                               # another mesh: start Uzawa from zero
-        d = contact.gap - (0.0 if contact.offset is None else contact.offset)
-        m.normal[j] = contact.force - d * m.penalty_scale[j] / c.penalty
+        m.normal[j] = contact.force
         if contact.friction and m.tangential is not None:
             m.tangential[j] = contact.force_T
             m.rotational[j] = contact.force_R

@@ -96,18 +96,24 @@ def test_recorded_crossing_and_slave_forces_together_balance_the_rod():
     """Pressed harder (force 2, the scene of tests/test_core.py), the
     strands wrap around each other: slave points and two crossing pairs
     share the contact at the last steps, and the record balances the rod at
-    every step; a solve started from the last state starts in balance."""
+    every step; a solve started from the last state takes no Uzawa update
+    and stays within the contact tolerance of it."""
     rod = pressed(2.0)
     res = rod.solve(4)
     assert res.converged, res.message
     assert assert_balanced(rod, res, 2.0) >= 1
     assert res.steps[-1].contact.crossing.s.size == 2
-    # restarted from there (slave points and two crossing pairs): in balance
+    # restarted from there (slave points and two crossing pairs): the
+    # crossing pairs in balance, the slave points at their Uzawa update
+    # (off by d / mu_N each: 0.5 % of the pressing force at the start), no
+    # update taken, and the state moves within the contact tolerance
     again = pressed(2.0, constant=True).solve(1, start=res)
     assert again.converged, again.message
-    st0 = again.steps[0]
-    assert st0.contact.uzawa == 0 and st0.residual_history[0] <= 1e-8 * 2.0
-    assert np.abs(st0.r - res.steps[-1].r).max() <= 1e-10 * EPS
+    st0, last = again.steps[0], res.steps[-1]
+    assert st0.contact.uzawa == 0 and st0.residual_history[0] <= 1e-2 * 2.0
+    assert np.abs(st0.r - last.r).max() <= rod.contact.tolerance * EPS
+    np.testing.assert_allclose(st0.contact.crossing.force, last.contact.crossing.force,
+                               rtol=2e-3)             # measured 8e-4
 
 
 def test_the_recorded_crossing_pairs_are_consistent(solved):
@@ -135,9 +141,10 @@ def test_the_recorded_crossing_pairs_are_consistent(solved):
 def test_a_solve_started_from_a_converged_contact_state_starts_in_balance(solved):
     """The pressed state, handed to a rod that holds the same forces as
     preloads (so that load factor 0 is that state's problem), is an
-    equilibrium from the first iterate: the carried multipliers give the
-    recorded forces at the recorded state (slave points and crossing pairs,
-    :func:`skfem_rod.solver.carry_multipliers`), so step 0 takes no Uzawa
+    equilibrium from the first iterate: the crossing pair (no slave point is
+    in contact here) carries the multiplier that gives its recorded force
+    at the recorded state (:func:`skfem_rod.solver.carry_multipliers`), so
+    step 0 takes no Uzawa
     update, its residual starts at the tolerance, the state does not move
     and the crossing forces are those recorded.  Before, the crossing pairs
     were not carried (Uzawa started them from zero); carried as ``lambda =
