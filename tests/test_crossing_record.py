@@ -1,7 +1,7 @@
 """What a converged step records of its crossing pairs
 (:class:`skfem_rod.results.CrossingContact`), and a solve started from a
-converged contact state (``Rod.solve(start=result)``), which starts in the
-balance it was recorded in.
+converged contact state (``Rod.solve(start=result)``), which starts with
+its crossing pairs in the balance they were recorded in.
 
 The scene: the figure-eight of tests/test_core.py, its two strands
 crossing at 90 degrees between slave points (elements 9 eps long), 3 eps
