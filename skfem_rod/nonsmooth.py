@@ -281,7 +281,7 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
             if ce.crossing_dw is not None and ce.crossing_dw.nnz:
                 # the weight's own derivative (a fading pair): d(w f_N)/dw
                 # = f_N + w f_N' offset along dw/dq
-                off_c = m.crossing_offsets(cp.key)
+                off_c = ce.crossing_offset
                 coef = np.zeros(cp.size)
                 coef[kc] = ce.crossing_fN[kc] / wc[kc] + wc[kc] * off_c[kc] / mu_c
                 Wq = ce.crossing_dw.tocoo()

@@ -649,8 +649,8 @@ class Result:
         c = self._step(step).contact
         if c is None or c.crossing is None or c.crossing.s.size == 0:
             return np.zeros((0, 3))
-        cr = c.crossing
-        return 0.5 * (self.evaluate(cr.s, step)["r"] + self.evaluate(cr.s_bar, step)["r"])
+        x = self.evaluate(np.r_[c.crossing.s, c.crossing.s_bar], step)["r"]
+        return 0.5 * (x[:c.crossing.s.size] + x[c.crossing.s.size:])
 
     def render(self, filename, step=-1, radius=None, per_element=8, **kwargs):
         """Offscreen PNG of the rod at a step as a tube with a stripe along
