@@ -35,7 +35,7 @@ of the fixed penalty to the tolerances; only the path to it changes.
 """
 import numpy as np
 
-from .contact.friction_assembly import coulomb_misfit, multiplier_updates
+from .contact.friction_assembly import coulomb_misfit, crossing_updates, multiplier_updates
 from .contact import OVERLAP_FAIL
 from .contact.law import uzawa_update
 
@@ -63,10 +63,11 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
     solve_pass : callable ``previous -> (r, R, lam, report)``: the inner
         solve at the current multipliers; ``previous`` is None on the first
         pass, else the ``(r, R, lam)`` the last pass converged to.
-    rescue : callable ``previous -> (r, R, lam, report)``, optional: solves
-        from the last converged pass when a later pass fails (the
-        multipliers as the failed pass left them, the penalty back at the
-        nominal one); the loop goes on from its state.  Once per loop.
+    rescue : callable ``(previous, kept) -> (r, R, lam, report)``,
+        optional: solves from the last converged pass when a later pass
+        fails (the multipliers as the failed pass left them, the penalty
+        back at the nominal one; ``kept`` the multipliers that pass
+        converged with); the loop goes on from its state.  Once per loop.
     strict : the state is an equilibrium to record (load steps, the
         polish, the gradient flow): where the contact tolerances hold at
         the slave points but the centrelines overlap by more than the
@@ -113,7 +114,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             # plies: see rescue in step) made it diverge
             problem.multipliers = problem.multipliers.nominal_penalty()
             why = rep.reason
-            r, R, lam, rep = rescue(previous)
+            r, R, lam, rep = rescue(previous, kept)
             total += rep.iterations
             rescue = None
             if rep.converged:
@@ -161,16 +162,24 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             problem.multipliers = saved
             rep.newton_total = total
             return r, R, lam, rep
-        previous = (r, R, lam)
+        previous, kept = (r, R, lam), problem.multipliers.copy()
         ce = rep.evaluation.contact
         pen, opened, d, dc = violations(problem, ce)
         done = pen <= c.tolerance * c.radius and opened <= c.tolerance * c.radius
         m = problem.multipliers
+        crossing_friction = None               # the crossing pairs' friction update
         if problem.friction:
             updates, moved = multiplier_updates(ce.friction, m, c)
-            rep.friction_moved = moved
             rep.friction_misfit = coulomb_misfit(ce.friction, problem.friction_params(),
                                                  c.friction_tolerance)
+            cf = ce.crossing_friction
+            if cf is not None:
+                crossing_friction, cmoved = crossing_updates(
+                    cf, ce.crossing.size, m.crossing_frictions(ce.crossing.key), c.gamma_T)
+                moved = max(moved, cmoved)
+                rep.friction_misfit = max(rep.friction_misfit, coulomb_misfit(
+                    cf, problem.crossing_friction_params(), c.friction_tolerance))
+            rep.friction_moved = moved
             done = done and max(moved, rep.friction_misfit) <= c.friction_tolerance
         if done and strict and rounds < OFFSET_ROUNDS and needs_offsets(problem, r, rep):
             kept = problem.multipliers.copy()
@@ -205,7 +214,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             # the force each pair applied: a fading pair gives its
             # multiplier up with its weight (docs/crossing-contact.md, 4)
             m.rekey_crossing(ce.crossing.key, ce.crossing.weight * uzawa_update(
-                dc, old, problem.crossing_compliance()))
+                dc, old, problem.crossing_compliance()), friction=crossing_friction)
             if c.penalty_growth > 1:
                 last_crossing = adapt_crossing_penalty(problem, ce, dc, last_crossing)
         uzawa += 1
@@ -464,11 +473,26 @@ def step(problem, r, R, lam, prescribed, opts, inner=None, rescue=True, strict=T
             return inner(r, R, lam, opts, prescribed=prescribed)
         return inner(previous[0], previous[1], lam, opts)
 
-    def generalized(previous):
+    def generalized(previous, kept):
+        # the friction multipliers are the generalized Newton's unknowns:
+        # they start from those the last pass converged with, with which
+        # its state is in balance.  The update knocks a sticking point's
+        # trial force out of the Coulomb ball (lambda + g / mu, with the
+        # pass's slip g), and from there the generalized Newton's first
+        # update took the slip branch: a crossing pair restarted without
+        # its friction force (tests/test_crossing_friction.py) slid by the
+        # clearance cap and the step failed
         from dataclasses import replace
+        m = problem.multipliers
+        if problem.friction:
+            m.tangential, m.rotational = kept.tangential.copy(), kept.rotational.copy()
+            m.crossing_friction = kept.crossing_frictions(m.crossing_key)
         return inner(previous[0], previous[1], lam, replace(opts, contact_solve="newton"))
 
-    again = generalized if use else (solve_pass if rescue else None)
+    def plain(previous, kept):
+        return solve_pass(previous)
+
+    again = generalized if use else (plain if rescue else None)
     r1, R1, _, rep = augmented_lagrangian(problem, solve_pass, again, strict)
     return r1, R1, rep
 

@@ -12,8 +12,11 @@ Unknowns ``(y, lambda_N)``, ``lambda_N`` one per slave point (a force per
 unit length), and with crossing contact one point force per crossing pair
 of the current evaluation (``C_c = w f_N - lambda_c``, the fixed point of
 the Uzawa update of a pair of weight ``w``; docs/contact-solve.md, "The
-crossing pairs among the unknowns").  Residuals (``w`` the slave's weight, ``f_N`` the
-augmented-Lagrangian force of eq. 4.2a, ``f_N = [d + mu lambda_N]_+ / mu``)::
+crossing pairs among the unknowns") and, with friction at the crossing
+pairs, their three friction multipliers each (``C = c - lambda_T``;
+docs/crossing-contact.md, "Friction at the crossing pairs").  Residuals
+(``w`` the slave's weight, ``f_N`` the augmented-Lagrangian force of eq.
+4.2a, ``f_N = [d + mu lambda_N]_+ / mu``)::
 
     G(y, lambda)   = internal - external + contact(f_N) + friction(f_N)
     C_i(y, lambda) = w_i (f_N,i - lambda_i)
@@ -137,15 +140,26 @@ def friction_laws(problem):
     return tuple((name, X) for name, coef, X in LAWS if getattr(c, coef) > 0)
 
 
+def crossing_friction_unknowns(problem):
+    """True when the crossing pairs' friction multipliers are unknowns:
+    the tangential law's multipliers are (:func:`friction_laws`) and the
+    crossing pairs carry it (contact option ``crossing_friction``)."""
+    return bool(problem.contact.crossing_friction) and any(
+        name == "tangential" for name, _ in friction_laws(problem))
+
+
 def unknowns(problem, pairs=None):
     """The multiplier unknowns as one vector: normal, then friction, then
     (``pairs``: the crossing pairs of the current evaluation) the crossing
-    pairs' multipliers, carried by place to those pairs."""
+    pairs' multipliers, carried by place to those pairs, then their
+    friction multipliers (3 per pair, :func:`crossing_friction_unknowns`)."""
     m = problem.multipliers
     parts = [m.normal] + [getattr(m, name).ravel() for name, _ in friction_laws(problem)]
     if pairs is not None:
         from .contact.crossing import carry
         parts.append(carry(m.crossing_key, m.crossing, pairs.key))
+        if crossing_friction_unknowns(problem):
+            parts.append(m.crossing_frictions(pairs.key).ravel())
     return np.concatenate(parts)
 
 
@@ -160,8 +174,11 @@ def set_unknowns(problem, x, pairs=None):
         setattr(m, name, x[ns + 3 * ns * k:ns + 3 * ns * (k + 1)].reshape(ns, 3).copy())
     if pairs is not None:
         start_c = ns + 3 * ns * len(laws)
-        m.rekey_crossing(pairs.key.copy(), x[start_c:start_c + pairs.size].copy(),
-                         offset=m.crossing_offsets(pairs.key))
+        k = pairs.size
+        friction = x[start_c + k:start_c + 4 * k].reshape(k, 3).copy() \
+            if crossing_friction_unknowns(problem) else None
+        m.rekey_crossing(pairs.key.copy(), x[start_c:start_c + k].copy(),
+                         offset=m.crossing_offsets(pairs.key), friction=friction)
 
 
 def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
@@ -200,10 +217,20 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
         for name, _ in laws:
             Cs.append((w_all[:, None] * (updates[name] - getattr(m, name))).ravel())
     cp = ce.crossing if crossing else None
+    cf = None                              # crossing friction among the unknowns
     if cp is not None:
         from .contact.crossing import carry
         lam_c = carry(m.crossing_key, m.crossing, cp.key)
         Cs.append(ce.crossing_fN - lam_c)
+        if crossing_friction_unknowns(problem):
+            # C = c - lambda per pair (a point force, as the normal rows),
+            # c the Uzawa update of the pair's multiplier (0 without force)
+            from .contact.friction_assembly import crossing_updates
+            cf = ce.crossing_friction
+            lam_cf = m.crossing_frictions(cp.key)
+            upd, cmoved = crossing_updates(cf, cp.size, lam_cf, c.gamma_T)
+            moved = max(moved, cmoved)
+            Cs.append((upd - lam_cf).ravel())
     C = np.concatenate(Cs)
     # the Uzawa loop's Coulomb test: at a point whose slip is just above
     # its tolerance the force's direction is sensitive to the multiplier
@@ -212,6 +239,9 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
     # iterates, not at the line search's trials)
     misfit = (coulomb_misfit(fr, problem.friction_params(), c.friction_tolerance)
               if laws and jacobian else 0.0)
+    if cf is not None and jacobian:
+        misfit = max(misfit, coulomb_misfit(cf, problem.crossing_friction_params(),
+                                            c.friction_tolerance))
     d = ce.gap
     mu = c.penalty / m.penalty_scale[pairs.slave]
     act = (d + mu * lam[pairs.slave]) > 0
@@ -261,6 +291,7 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
     # the part of dC/dlambda the active rows are regularized with
     # (-REGULARIZATION w times the update's own derivative dc/dlambda)
     reg = [(np.where(active[:ns], -REGULARIZATION * w_all, 0.0), np.arange(ns), np.arange(ns))]
+    cross_dd = []                               # the crossing friction's dC/dlambda
     if cp is not None:
         # C_c = w f_N - lambda, f_N = [d + mu lambda]_+ / mu, d = 2 eps +
         # w offset - l: active, dC/dlambda = w - 1 and dC/dy = -(w / mu)
@@ -286,7 +317,16 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
                 coef[kc] = ce.crossing_fN[kc] / wc[kc] + wc[kc] * off_c[kc] / mu_c
                 Wq = ce.crossing_dw.tocoo()
                 ly.append((coef[Wq.row] * Wq.data, nf + Wq.row, Wq.col))
-    dd = [(np.concatenate(diags), np.arange(nl), np.arange(nl))]
+        xf = ce.crossing_friction
+        if xf is not None and xf.dresidual_dfN is not None and xf.index.size:
+            # friction at the crossing pairs, through the Coulomb radius:
+            # df_N/dlambda_c = 1 at its pairs (f_N > 0: active)
+            fd, fv = xf.dresidual_dfN
+            yl.append((fv.ravel(), fd.ravel(), np.repeat(rows_c[xf.slave], 48)))
+        if cf is not None:
+            _crossing_friction_blocks(cf, cp, ce, rows_c, nf + cp.size, act_c, mu_c,
+                                      active, diags, cross_dd, reg, yl, ly)
+    dd = [(np.concatenate(diags), np.arange(nl), np.arange(nl))] + cross_dd
     if fr is not None and fr.dresidual_dfN is not None and fr.index.size:
         # friction pairs are the pairs with f_N > 0 (all active)
         fd, fv = fr.dresidual_dfN
@@ -332,6 +372,41 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
         K_ly = K_ly @ problem.T
     return ContactState(G, C, K_ly, K_yl, D, D_reg, active, pen, opened, merit, moved,
                         misfit)
+
+
+def _crossing_friction_blocks(cf, cp, ce, rows_c, start, act_c, mu_c, active, diags, dd, reg,
+                              yl, ly):
+    """The crossing pairs' friction rows ``C = c - lambda`` (3 per pair,
+    from ``start``) in the generalized Jacobian's parts (appended in
+    place): ``dC/dlambda = dc/dlambda - I`` (``-I`` alone at pairs without
+    force, condensed), ``dC/dy`` (the kinematics' and, for a fading pair,
+    the offset's share of ``f_N`` through the weight), ``dC/dlambda_c =
+    dc/df_N`` where the normal law is active, and ``dG/dlambda``."""
+    diags.append(np.full(3 * cp.size, -1.0))
+    if cf.index.size == 0:
+        return
+    J = cf.jacobian
+    if J is None:
+        raise RuntimeError("the crossing friction output has no multiplier Jacobian: "
+                           "evaluate inside Problem.friction_unknowns()")
+    k = cf.slave                                               # pairs with f_N > 0
+    lrow = start + 3 * k[:, None] + np.arange(3)               # (mf, 3)
+    active[lrow.ravel()] = True
+    ly.append((J.rows_T.ravel(), np.repeat(lrow.ravel(), 48), np.tile(J.dofs, (1, 3)).ravel()))
+    yl.append((J.cols_T.ravel(), np.repeat(J.dofs.ravel(), 3), np.tile(lrow, (1, 48)).ravel()))
+    own = J.self_T
+    dd.append((own.ravel(), np.repeat(lrow, 3, axis=1).ravel(), np.tile(lrow, (1, 3)).ravel()))
+    reg.append(((-REGULARIZATION * own).ravel(), np.repeat(lrow, 3, axis=1).ravel(),
+                np.tile(lrow, (1, 3)).ravel()))
+    on = act_c[k]
+    dd.append((J.normal_T[on].ravel(), lrow[on].ravel(), np.repeat(rows_c[k[on]], 3)))
+    if ce.crossing_dw is not None and ce.crossing_dw.nnz:
+        # f_N(2 eps + w offset - l): dc/df_N f_N' offset dw/dq
+        coef = np.zeros((cp.size, 3))
+        coef[k[on]] = J.normal_T[on] * (ce.crossing_offset[k[on]] / mu_c)[:, None]
+        Wq = ce.crossing_dw.tocoo()
+        for a in range(3):
+            ly.append((coef[Wq.row, a] * Wq.data, start + 3 * Wq.row + a, Wq.col))
 
 
 def contact_states(problem, ev, cs):
@@ -508,7 +583,9 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
         # force at the crossing pairs
         compliance = np.full(dl.size, c.penalty)
         if pairs is not None and pairs.size:
-            compliance[-pairs.size:] = problem.crossing_compliance()
+            start_c = m.normal.size * (1 + 3 * len(friction_laws(problem)))
+            compliance[start_c:start_c + pairs.size] = problem.crossing_compliance()
+            compliance[start_c + pairs.size:] = problem.crossing_friction_params().mu_T
         gaps = np.abs(alpha * dl) * compliance
         last_update = max(update_size(problem, alpha * dy),
                           float(gaps.max(initial=0.0)) / problem.rod.length)

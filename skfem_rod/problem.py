@@ -63,6 +63,10 @@ class ContactEvaluation:
     #: contact curve's dofs (with the tangent, inside
     #: :meth:`Problem.crossing_unknowns`; :func:`crossing_work`), else None
     crossing_dw: object = None
+    #: the crossing pairs' friction figures (friction and crossing contact
+    #: on; :class:`skfem_rod.contact.friction_assembly.FrictionOutput`,
+    #: ``slave`` = the pair's index in ``crossing``)
+    crossing_friction: object = None
 
 
 @dataclass
@@ -119,6 +123,10 @@ class Multipliers:
     offset: np.ndarray = None
     #: the same per crossing pair, beside ``crossing`` (carried by place)
     crossing_offset: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: ``(k, 3)`` the crossing pairs' tangential friction multipliers,
+    #: beside ``crossing`` (carried by place; at the last converged state,
+    #: pushed forward as the slave points' are)
+    crossing_friction: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @classmethod
     def zeros(cls, n, friction):
@@ -133,7 +141,8 @@ class Multipliers:
                        tangential=c(self.tangential), rotational=c(self.rotational),
                        crossing_key=c(self.crossing_key), crossing=c(self.crossing),
                        crossing_places=c(self.crossing_places), offset=c(self.offset),
-                       crossing_offset=c(self.crossing_offset))
+                       crossing_offset=c(self.crossing_offset),
+                       crossing_friction=c(self.crossing_friction))
 
     def held_crossing(self):
         """The ``held`` argument of
@@ -164,14 +173,26 @@ class Multipliers:
             return np.zeros(len(key))
         return carry(self.crossing_key, self.crossing_offset, key)
 
-    def rekey_crossing(self, key, lam, offset=None):
+    def crossing_frictions(self, key):
+        """The friction multipliers ``(k, 3)`` of crossing pairs with the
+        keys ``key``, carried by place from the held keys (0 for new
+        places)."""
+        from .contact.crossing import carry
+        if self.crossing_friction.shape[0] != len(self.crossing_key):
+            return np.zeros((len(key), 3))
+        return carry(self.crossing_key, self.crossing_friction, key)
+
+    def rekey_crossing(self, key, lam, offset=None, friction=None):
         """New crossing keys and multipliers (a multiplier update) with
-        their gap offsets (default: carried from the old keys by place):
-        the held pairs follow from the new keys' places."""
+        their gap offsets and friction multipliers (default: carried from
+        the old keys by place): the held pairs follow from the new keys'
+        places."""
         if offset is None:
             offset = self.crossing_offsets(key)
+        if friction is None:
+            friction = self.crossing_frictions(key)
         self.crossing_key, self.crossing, self.crossing_places = key, lam, None
-        self.crossing_offset = offset
+        self.crossing_offset, self.crossing_friction = offset, friction
 
     def nominal_penalty(self):
         """The same multipliers at the nominal penalties (factors 1)."""
@@ -418,6 +439,15 @@ class Problem:
             m.rotational = np.zeros_like(m.rotational)
             m.tangential[fr.slave] = fr.force_T
             m.rotational[fr.slave] = fr.force_R
+        cf = None if evaluation is None or evaluation.contact is None \
+            else evaluation.contact.crossing_friction
+        if cf is not None:
+            # the pairs that follow a held key take their forces to it
+            m = self.multipliers
+            m.crossing_friction = np.zeros((len(m.crossing_key), 3))
+            held = evaluation.contact.crossing.key[cf.slave, 4].astype(np.int64)
+            ok = (held >= 0) & (held < len(m.crossing_key))
+            m.crossing_friction[held[ok]] = cf.force_T[ok]
 
     def prescribed(self, dlam):
         """Increment of the constrained dofs for a load-factor change
@@ -547,19 +577,54 @@ class Problem:
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             off = m.crossing_offsets(cp.key)
-            out = crossing_work(mesh, r, cp, lam, self.crossing_compliance(), c.radius, tangent, fade=not frozen, offset=off,
-                                weight_rows=tangent and self.crossing_jacobian)
+            rows = self.crossing_jacobian or (friction and c.crossing_friction and not frozen)
+            out = crossing_work(mesh, r, cp, lam, self.crossing_compliance(), c.radius, tangent,
+                                fade=not frozen, offset=off, weight_rows=tangent and rows)
             ec, fc, Kc, fNc = out[:4]
             force = force + fc
             if tangent:
                 K = K + Kc
             ce.crossing, ce.crossing_fN, ce.energy = cp, fNc, ce.energy + ec
-            ce.crossing_dw = out[4] if len(out) > 4 else None
+            dw = out[4] if len(out) > 4 else None
+            ce.crossing_dw = dw if self.crossing_jacobian else None
             # a fading pair's offset fades with it (crossing_work)
             ce.crossing_gap = 2.0 * c.radius + cp.weight * off - cp.distance
             ce.crossing_offset = off
+            if friction and c.crossing_friction:
+                ff, Kf, ce.crossing_friction = self._crossing_friction(
+                    mesh, r, R, reference, cp, lam, off, tangent, None if frozen else dw)
+                force = force + ff
+                if tangent:
+                    K = K + Kf
             tm["crossing"] += time.perf_counter() - t3
         return ce, force, K
+
+    def _crossing_friction(self, mesh, r, R, reference, cp, lam, off, tangent, dw):
+        """Friction at the crossing pairs ``cp`` (multipliers ``lam``, gap
+        offsets ``off``; ``dw`` the weights' derivatives, None: frozen):
+        residual, tangent and output of
+        :func:`skfem_rod.contact.friction_assembly.crossing_friction_work`."""
+        from .contact.friction_assembly import crossing_friction_work
+        from .contact.law import gap, normal_force
+        from .contact.slip import SlipState
+        r_n, R_n = reference
+        m = self.multipliers
+        l = cp.distance if cp.length is None else cp.length
+        fN, dfN = normal_force(gap(l, self.contact.radius) + cp.weight * off, lam,
+                               self.crossing_compliance())
+        lam_T = m.crossing_frictions(cp.key)
+        state = SlipState(r, R, r_n, R_n, lam_T, np.zeros_like(lam_T))
+        return crossing_friction_work(mesh, state, cp, fN, dfN, self.crossing_friction_params(),
+                                      tangent, dw=dw, offset=off,
+                                      multiplier_jacobian=self.friction_jacobian)
+
+    def crossing_friction_params(self):
+        """The crossing pairs' friction parameters: the tangential law at
+        the compliance ``mu_T`` scaled as the normal one is (per unit point
+        force: ``crossing_penalty / penalty``), at the adaptive friction
+        factor, which the slave points' friction shares
+        (:meth:`skfem_rod.contact.ContactOptions.crossing_friction_params`)."""
+        return self.contact.crossing_friction_params(self.multipliers.friction_scale)
 
     def friction_params(self):
         """The :class:`~skfem_rod.contact.friction_assembly.FrictionParams`

@@ -38,8 +38,11 @@ class CrossingContact:
     distance between two strands, both parameters free
     (:mod:`skfem_rod.contact.crossing`, docs/crossing-contact.md).  Their
     forces are point forces (not per unit length, unlike
-    :class:`ContactState`'s), each already times its pair's weight; a
-    crossing pair carries no friction."""
+    :class:`ContactState`'s), each already times its pair's weight.  With
+    friction on (``gamma_T > 0`` and the contact option
+    ``crossing_friction``) each pair carries a tangential Coulomb force
+    ``w F``, ``|F| <= gamma_T f_N`` (docs/crossing-contact.md, "Friction at
+    the crossing pairs")."""
     s: np.ndarray            # (k,) arclength of the first point
     s_bar: np.ndarray        # (k,) arclength of the second point
     force: np.ndarray        # (k,) point force w f_N pressing the strands apart
@@ -53,6 +56,26 @@ class CrossingContact:
     #: (:func:`skfem_rod.contact.crossing.carry`): what a solve started
     #: from this step (``Rod.solve(start=...)``) starts its pairs from
     key: np.ndarray
+    #: ``(k, 3)`` the friction point force ``w F`` on the second point's
+    #: strand (the first point's strand gets ``-w F``; it acts at the
+    #: surface points, so each section also gets the couple
+    #: ``-(distance / 2) N x w F``); zeros without friction there
+    friction: np.ndarray = None
+    #: ``(k, 3)`` the material slip of the step (F6), first point relative
+    #: to the second; zeros without friction
+    slip: np.ndarray = None
+    #: ``(k,)`` :class:`skfem_rod.contact.friction.FrictionState` per pair
+    #: (0, open, without friction)
+    state: np.ndarray = None
+
+    def __post_init__(self):
+        k = self.s.size
+        if self.friction is None:
+            self.friction = np.zeros((k, 3))
+        if self.slip is None:
+            self.slip = np.zeros((k, 3))
+        if self.state is None:
+            self.state = np.zeros(k, dtype=int)
 
     @property
     def total_force(self):
@@ -82,7 +105,8 @@ class ContactState:
     state_R: np.ndarray = None
     slip_T: np.ndarray = None    # (m, 3) slip increments of the step
     slip_R: np.ndarray = None
-    dissipation: float = 0.0     # friction work dissipated in the step
+    dissipation: float = 0.0     # friction work dissipated in the step (slave points and
+                                 # crossing pairs)
     min_distance: float = None   # true smallest distance between strands (centrelines)
     #: per point, the gap offset it acted with (augmented.adjust_offsets):
     #: in contact at the distance 2 eps + offset, where the centrelines dip
@@ -186,10 +210,17 @@ class Result:
             on = ce.crossing_fN > 0
             key = np.array(cp.key[on], dtype=float).reshape(-1, cp.key.shape[1])
             key[:, 4] = -1.0                  # no held index outside the solve
+            friction, slip = np.zeros((cp.size, 3)), np.zeros((cp.size, 3))
+            state = np.zeros(cp.size, dtype=int)
+            cf = ce.crossing_friction
+            if cf is not None:
+                friction[cf.slave] = cp.weight[cf.slave, None] * cf.force_T
+                slip[cf.slave], state[cf.slave] = cf.slip_T, cf.state_T
             contact.crossing = CrossingContact(
                 s=cp.s[on], s_bar=cp.s_bar[on], force=ce.crossing_fN[on],
                 weight=cp.weight[on], gap=ce.crossing_gap[on], normal=cp.normal[on],
-                offset=ce.crossing_offset[on], angle=cp.beta[on], key=key)
+                offset=ce.crossing_offset[on], angle=cp.beta[on], key=key,
+                friction=friction[on], slip=slip[on], state=state[on])
         fr = ce.friction
         if fr is not None:
             w = pairs.weight[fr.index]
@@ -198,6 +229,9 @@ class Result:
             contact.slip_T, contact.slip_R = fr.slip_T, fr.slip_R
             contact.dissipation = float(np.sum(w * (np.sum(fr.force_T * fr.slip_T, 1)
                                                     + np.sum(fr.force_R * fr.slip_R, 1))))
+            if contact.crossing is not None:
+                cr = contact.crossing
+                contact.dissipation += float(np.sum(cr.friction * cr.slip))
         return contact
 
     def finish(self, converged, message):

@@ -1107,6 +1107,9 @@ def summary(scene, result, wall_time=None):
                 out["end_state"]["contact"]["crossing"] = dict(
                     s=x.s, s_bar=x.s_bar, force=x.force, weight=x.weight, gap=x.gap,
                     points=result.crossing_points(), total_force=x.total_force)
+                if c.friction:
+                    out["end_state"]["contact"]["crossing"].update(friction=x.friction,
+                                                                   state=x.state)
     return out
 
 

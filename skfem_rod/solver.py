@@ -107,7 +107,8 @@ def carry_multipliers(problem, contact):
     recorded point forces at the recorded state, ``lambda = f / w - d / mu``
     (eq. 4.2a solved for the multiplier at the nominal penalty); and, with
     friction on both sides, the friction forces (the carried multipliers of
-    an accepted step, met again at zero slip).  Nothing is carried where the
+    an accepted step, met again at zero slip; at the crossing pairs ``F =
+    w F / w``).  Nothing is carried where the
     recorded slave points are not this problem's (another mesh).
 
     Why the two differ (measured, docs/crossing-contact.md): the crossing
@@ -136,8 +137,10 @@ def carry_multipliers(problem, contact):
     cr = contact.crossing
     if cr is not None and c.crossing and cr.s.size:
         d = cr.gap - cr.weight * cr.offset
+        friction = cr.friction / cr.weight[:, None] if c.crossing_friction \
+            else np.zeros((cr.s.size, 3))
         m.rekey_crossing(cr.key.copy(), cr.force / cr.weight - d / problem.crossing_compliance(),
-                         np.zeros(cr.s.size))
+                         np.zeros(cr.s.size), friction)
 
 
 class LoadStepper:

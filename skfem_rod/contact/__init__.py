@@ -105,6 +105,9 @@ class ContactOptions:
         crossing strands (:mod:`.crossing`); default False.
     crossing_penalty : compliance of the crossing pairs' point law (length
         per unit force); default ``penalty / radius``.
+    crossing_friction : with ``gamma_T > 0``, tangential Coulomb friction at
+        the crossing pairs too (:func:`.friction_assembly.crossing_friction_work`);
+        default True.  The rotational law stays with the Gauss slave points.
     crossing_angle : cap of the angle at which a strict minimum of the
         strand distance gets a crossing pair of full weight (radians,
         default 15 degrees): ``min(crossing_angle, beta_h)``, ``beta_h``
@@ -150,6 +153,8 @@ class ContactOptions:
                                               "crossing strands")
     crossing_penalty: float = _field(None, "number", "compliance of the crossing pairs "
                                                      "(default penalty / eps)", lo=0.0)
+    crossing_friction: bool = _field(True, "boolean", "Coulomb friction (gamma_T) at the "
+                                                      "crossing pairs too")
     crossing_angle: float = _field(float(np.radians(15.0)), "number",
                                    "cap of the angle at which a distance minimum gets a "
                                    "crossing pair of full weight (rad, below pi/2; the "
@@ -184,6 +189,19 @@ class ContactOptions:
         from .friction_assembly import FrictionParams
         return FrictionParams(self.gamma_T, self.gamma_R, self.mu_T / scale_T,
                               self.mu_R / scale_R, push_forward, self.rotational_slip)
+
+    def crossing_friction_params(self, scale=1.0):
+        """The :class:`.friction_assembly.FrictionParams` of the crossing
+        pairs (docs/crossing-contact.md, "Friction at the crossing pairs"):
+        the tangential law, its compliance per unit point force
+        ``mu_T crossing_penalty / penalty`` (as the normal law's), divided
+        by ``scale`` (the adaptive penalty factors), on the whole slip in the
+        tangent plane whatever ``rotational_slip`` says (its split hands
+        the circumferential sliding to the rotational law); no rotational
+        law at a point pair."""
+        from .friction_assembly import FrictionParams
+        mu = self.mu_T * self.crossing_penalty / self.penalty / scale
+        return FrictionParams(self.gamma_T, 0.0, mu, 1.0, True, "twist")
 
     def crossing_threshold(self):
         """The :class:`.crossing.PairThreshold` of these options: which

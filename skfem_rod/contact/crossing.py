@@ -1128,24 +1128,27 @@ def carry(old_key, old_lam, new_key):
     new pair's carry radius (the longer of its two elements; each old pair
     to at most one new pair, the nearest), 0 for new minima.  Keyed by
     place, not by element pair: a minimum moving across a node keeps its
-    multiplier."""
+    multiplier.  ``old_lam`` may hold a vector per pair (``(k, 3)``: the
+    friction multipliers); the result has the same trailing shape."""
     new_key = np.asarray(new_key, dtype=float)
     new_key = new_key.reshape(-1, new_key.shape[-1]) if new_key.size else np.zeros((0, 3))
-    lam = np.zeros(new_key.shape[0])
+    old_lam = np.asarray(old_lam, float)
+    lam = np.zeros((new_key.shape[0],) + old_lam.shape[1:])
     old_key = np.asarray(old_key, dtype=float)
     if old_key.size == 0 or new_key.shape[0] == 0:
         return lam
-    old_lam = np.asarray(old_lam, float)
     old_key = old_key.reshape(-1, old_key.shape[-1])
-    idx = new_key[:, 4].astype(np.int64) if new_key.shape[1] > 4 else np.full(lam.size, -1)
-    direct = (idx >= 0) & (idx < old_lam.size)
+    n_old = old_lam.shape[0]
+    idx = new_key[:, 4].astype(np.int64) if new_key.shape[1] > 4 \
+        else np.full(new_key.shape[0], -1)
+    direct = (idx >= 0) & (idx < n_old)
     lam[direct] = old_lam[idx[direct]]
     rest = np.flatnonzero(~direct & (idx < 0))
-    taken = np.zeros(old_lam.size, bool)
+    taken = np.zeros(n_old, bool)
     taken[idx[direct]] = True
     if rest.size:
         dist, j = cKDTree(old_key[:, :2]).query(new_key[rest, :2], p=np.inf)
-        ok = (dist <= new_key[rest, 2]) & ~taken[np.minimum(j, old_lam.size - 1)]
+        ok = (dist <= new_key[rest, 2]) & ~taken[np.minimum(j, n_old - 1)]
         hit = np.flatnonzero(ok)
         hit = hit[np.lexsort((dist[hit], j[hit]))]
         hit = hit[np.r_[True, j[hit][1:] != j[hit][:-1]]] if hit.size else hit

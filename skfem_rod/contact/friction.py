@@ -99,7 +99,19 @@ Deviations from the paper
    ``df/df_N = gamma e`` is then the right derivative (``f_N`` cannot
    decrease), zero when ``a = 0``.
 4. On the switch ``|a| = mu gamma f_N > 0`` the state is :data:`STICK` (the
-   paper's ``<=`` in ``F``); both formulas of sec. 1.1 agree there.
+   paper's ``<=`` in ``F``); both formulas of sec. 1.1 agree there.  "On"
+   is to round-off (:data:`ON_SPHERE`, relative; the force is still
+   projected onto the ball): a point that slipped in the last load step
+   starts the next one with ``g = 0`` and its carried multiplier on the
+   sphere, ``|mu lambda| = mu gamma f_N``, and round-off decided which
+   tangent Newton's first iteration took.  The slip tangent has no
+   stiffness along the slip, so where the point sticks in the new step
+   the first update slid it across, the force turned to the other side
+   of the ball, and Newton cycled between the two directions (measured:
+   a crossing pair of the pressed figure-eight pulled sideways, the
+   residual 3.5e-5 <-> 3.2e-5 for 25 iterations at every step size down
+   to 6e-5 of the load; with the stick tangent first, 3-5 iterations per
+   step, docs/crossing-contact.md).
 
 The law itself does not project ``g`` on a tangent plane or on the
 ``d_3`` axis: eq. 3.7 / 3.9 / 4.2 use full vectors.  If the caller projects
@@ -112,6 +124,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ..rotations import cross
+
+
+#: ``|a| <= tau (1 + ON_SPHERE)`` is inside the ball (the stick state): a
+#: point on the sphere to round-off sticks (module doc, deviation 4)
+ON_SPHERE = 1e-9
 
 
 class FrictionState(IntEnum):
@@ -176,10 +193,13 @@ def project_ball(a, radius, derivatives=True):
     a = np.broadcast_to(a, shape + (3,))
     tau = np.broadcast_to(tau, shape)
     norm = np.linalg.norm(a, axis=-1)
-    inside = (norm <= tau) & (tau > 0)
+    # on the sphere to round-off counts as inside (module doc, 4): a point
+    # that slipped in the last step starts the next one there
+    inside = (norm <= tau * (1.0 + ON_SPHERE)) & (tau > 0)
     safe = np.where(norm > 0, norm, 1.0)
     e = a / safe[..., None]                         # 0 where a = 0
-    value = np.where(inside[..., None], a, tau[..., None] * e)
+    value = np.where(inside[..., None], a * np.minimum(1.0, tau / safe)[..., None],
+                     tau[..., None] * e)
     if not derivatives:
         return BallProjection(value, None, None, inside)
     eye = np.eye(3)

@@ -54,7 +54,8 @@ import scipy.sparse as sp
 from ..rotations import hat, tangent_inv
 import skfem_rod.contact.friction as law
 from .assembly import PatternCache
-from .slip import DS, NC, NM, S, M, pulled_back, pushed, slip_kinematics
+from .slip import (DS, NC, NM, S, M, crossing_kinematics, pulled_back, pushed,
+                   slip_kinematics)
 from .slip import D as DM
 
 
@@ -269,14 +270,16 @@ def _dforces_dfN(kin, fo, p):
 def _core(kin, w, F, DF, couple, Dcouple):
     """The reduced core ``C`` ``(m, row mode, row dof, NC)`` of the tangent:
     ``w [Vx^T DF - rho Vl^T Dq - (Vl^T q) Drho^T]`` plus the moving master
-    shape functions (row mode ``N'_m`` times ``Delta xi``)."""
+    shape functions (row mode ``N'_m`` times ``Delta xi``) and, for a
+    crossing pair, the moving slave's (row mode ``N'_s`` times ``Delta
+    xi_s``)."""
     m = w.size
     q = np.cross(kin.N, F)
     Dq = hat(kin.N) @ DF - hat(F) @ kin.DN
     wc = w[:, None, None]
     E1 = wc * DF
     E2 = -wc * (kin.rho[:, None, None] * Dq + _outer(q, kin.Drho))
-    C = np.zeros((m, NM, 6, NC))       # no row has the mode N'_s
+    C = np.zeros((m, NM, 6, NC))
     C[:, 0, :3] = E1
     C[:, 1, :3] = -E1
     E3 = wc * Dcouple
@@ -284,6 +287,9 @@ def _core(kin, w, F, DF, couple, Dcouple):
     C[:, 1, 3:] = E2 - E3
     C[:, 2, :3] = -_outer(w[:, None] * F, kin.Xi)
     C[:, 2, 3:] = -_outer(w[:, None] * (kin.rho[:, None] * q + couple), kin.Xi)
+    if kin.Us is not None:             # a moving slave point (crossing pairs)
+        C[:, 3, :3] = _outer(w[:, None] * F, kin.Us)
+        C[:, 3, 3:] = _outer(w[:, None] * (couple - kin.rho[:, None] * q), kin.Us)
     return C
 
 
@@ -443,6 +449,72 @@ def friction_work(mesh, state, pairs, normal, params, tangent=True, K_normal=Non
     return force, K, out
 
 
+def crossing_friction_work(mesh, state, cp, fN, dfN, params, tangent=True, dw=None,
+                           offset=None, multiplier_jacobian=False):
+    """Residual ``(n_dofs,)``, tangent (CSC or None) and
+    :class:`FrictionOutput` of Coulomb friction at the crossing pairs ``cp``
+    (a :class:`.crossing.CrossingPairs` at ``state.r``;
+    docs/crossing-contact.md, "Friction at the crossing pairs").
+
+    The pair ``(e, u)``, ``(f, v)`` is a slave/master pair whose two
+    parameters move (:func:`.slip.crossing_kinematics`): the same material
+    slip (F6), the same laws (:func:`_forces`), acting with the pair's
+    weight ``w`` as a point force ``w F``: ``|w F| <= gamma_T w f_N``,
+    with ``f_N`` the pair's point force before its weight.
+
+    ``state`` (:class:`.slip.SlipState`): ``lam_T``, ``lam_R`` ``(m, 3)``
+    are the pairs' carried multipliers (carried to ``cp`` by place by the
+    caller); ``fN``, ``dfN`` ``(m,)``: the pairs' normal point forces (before
+    the weight) and their derivative with respect to the gap; ``params``:
+    the crossing pairs' :class:`FrictionParams` (compliances per unit
+    point force).  ``dw`` (optional, ``(m, n_dofs)`` CSR): the weights'
+    derivatives ``dw/dq`` (:func:`.crossing.crossing_work`,
+    ``weight_rows``), whose terms the tangent then holds (the factor ``w``
+    and the gap ``2 eps + w offset - l`` of ``f_N``, ``offset`` the pairs'
+    gap offsets); without it the weights are frozen in the tangent.
+    ``FrictionOutput.slave`` holds the pairs' indices in ``cp``; with the
+    tangent its ``dresidual_dfN`` is the residual's derivative with respect
+    to each pair's ``f_N`` (the generalized Newton's crossing columns) and,
+    with ``multiplier_jacobian``, its ``jacobian`` the
+    :class:`MultiplierJacobian` of the pairs' multipliers (their rows among
+    the generalized Newton's unknowns)."""
+    p = params
+    n = mesh.n_dofs
+    idx = np.flatnonzero(fN > 0)
+    if idx.size == 0:
+        return _no_friction(n, idx, tangent, None)
+    w = np.ones(cp.size)[idx] if cp.weight is None else cp.weight[idx]
+    kin = crossing_kinematics(mesh, state.r, state.R, state.r_n, state.R_n, cp, idx, tangent)
+    fo = _forces(kin, state.lam_T[idx], state.lam_R[idx], fN[idx], dfN[idx], p, tangent)
+    force = _residual(n, kin, w, fo.F, fo.couple)
+    back = (lambda f: pulled_back(kin, f)) if p.push_forward else (lambda f: f)
+    out = FrictionOutput(idx, idx, fo.gT, fo.gR, fo.fT, fo.fR, fo.resT.state, fo.resR.state,
+                         fN[idx], back(fo.fT), back(fo.fR), kin.t)
+    if not tangent:
+        return force, None, out
+    dofs, loc = _local(kin, w, *_dforces_dfN(kin, fo, p))
+    out.dresidual_dfN = (dofs.reshape(idx.size, 48), loc.reshape(idx.size, 48))
+    if multiplier_jacobian:
+        out.jacobian = _multiplier_jacobian(kin, fo, p, w)
+    C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
+    K = _expand(mesh, kin, cp.e[idx], cp.f[idx], C, None, PatternCache())
+    if dw is not None:
+        Wq = sp.coo_matrix(dw[idx])
+        if Wq.nnz:
+            # w F(f_N(2 eps + w offset - l)): the weight's derivative enters
+            # through the factor and through the gap
+            off = np.zeros(cp.size)[idx] if offset is None else np.asarray(offset, float)[idx]
+            m = idx.size
+            _, per_w = _local(kin, np.ones(m), fo.F, fo.couple)
+            per_f = (off * dfN[idx])[:, None] * out.dresidual_dfN[1]
+            vec = (per_w.reshape(m, 48) + per_f)[Wq.row]             # (nnz, 48)
+            rows = dofs.reshape(m, 48)[Wq.row]
+            cols = np.broadcast_to(Wq.col[:, None], rows.shape)
+            K = K + sp.csc_matrix(((vec * Wq.data[:, None]).ravel(),
+                                   (rows.ravel(), cols.ravel())), shape=(n, n))
+    return force, K.tocsc(), out
+
+
 def _expand_rows(kin, D):
     """Reduced operators ``D`` ``(m, 3, NC)`` (see :mod:`.slip`) expanded
     to the dofs of the pairs' 8 nodes: ``(m, 3, 48)``, the spin columns
@@ -535,6 +607,22 @@ def multiplier_updates(out, multipliers, contact, names=None):
         if gamma > 0 and out.fN.size:
             moved = max(moved, float(np.abs(new - old).max()) / (gamma * out.fN.max()))
     return updates, moved
+
+
+def crossing_updates(out, n_pairs, carried, gamma):
+    """The Uzawa update ``lambda <- f`` of the crossing pairs' tangential
+    friction multipliers (the :class:`FrictionOutput` ``out`` of
+    :func:`crossing_friction_work`, ``multiplier_T``): ``(n_pairs, 3)``,
+    zero at pairs without a normal force; and how far it is from
+    ``carried`` (the multipliers the evaluation used), relative to the
+    Coulomb bound ``gamma max f_N`` (0 without force or coefficient), as
+    :func:`multiplier_updates` measures the slave points'."""
+    new = np.zeros((n_pairs, 3))
+    new[out.slave] = out.multiplier_T
+    moved = 0.0
+    if gamma > 0 and out.fN.size and n_pairs:
+        moved = float(np.abs(new - carried).max()) / (gamma * out.fN.max())
+    return new, moved
 
 
 def coulomb_misfit(out, params, tolerance):

@@ -30,6 +30,12 @@ projection sits on a vertex of the C0 curve); ``b = N x t``.  The laws split ``g
 slip ``t (t . g)`` (tangential law, ``gamma_T``) and the circumferential slip
 as a rotation about ``t``, ``t (b . g) / rho`` (rotational law, ``gamma_R``).
 
+Crossing pairs (:func:`crossing_kinematics`, :mod:`.crossing`): point
+``u`` of element ``e`` stands in the slave's place and ``v`` of ``f`` in
+the master's, and both parameters move with the closest-point conditions
+(``Delta xi_s``, the ``Us`` of :class:`Slip`, beside ``Delta xi``); the
+slip is the same F6 of the two material points now in contact.
+
 Carried multipliers live at the slave's material point and are pushed
 forward with its section's incremental rotation, ``Lam_s lambda``
 (:func:`pushed`).
@@ -91,6 +97,7 @@ class Slip:
     Lam_s: np.ndarray     # (m, 3, 3) incremental rotation of the slave section
     rel: np.ndarray       # (m, 3) phi_s - phi_m: relative rotation increment (eq. 3.9, F5)
     Xi: np.ndarray = None     # (m, NC) Delta xi
+    Us: np.ndarray = None     # (m, NC) Delta xi_s (crossing pairs), None: held
     NX: np.ndarray = None     # (m, NC) N . delta(x - y)
     DN: np.ndarray = None     # (m, 3, NC)
     Dg: np.ndarray = None     # (m, 3, NC)
@@ -131,12 +138,39 @@ def _at(N, values, nodes):
 def slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, linearize=True):
     """:class:`Slip` of the pairs ``idx`` of ``pairs`` (from
     :func:`.search.search` at ``r``) over the step from ``(r_n, R_n)`` to
-    ``(r, R)``."""
-    ve, me = pairs.s_elem[idx], pairs.m_elem[idx]
-    l, N = pairs.distance[idx], pairs.normal[idx]
+    ``(r, R)``: the slave's parameter is held (a material point), the
+    master's moves with the projection (eq. 6.5)."""
+    return _kinematics(mesh, r, R, r_n, R_n, pairs.s_elem[idx], pairs.m_elem[idx],
+                       pairs.s_xi[idx], pairs.m_xi[idx], pairs.distance[idx],
+                       pairs.normal[idx], linearize, interior=pairs.interior[idx])
+
+
+def crossing_kinematics(mesh, r, R, r_n, R_n, cp, idx, linearize=True):
+    """:class:`Slip` of the crossing pairs ``idx`` of ``cp`` (a
+    :class:`.crossing.CrossingPairs` at ``r``): point ``u`` of element
+    ``e`` in the slave's place, point ``v`` of ``f`` in the master's.  Both
+    parameters are free: they move with the closest-point conditions
+    ``F_u = F_v = 0`` of ``F = |X(u) - Y(v)|^2 / 2``, ``Delta (u, v) =
+    -F_pp^-1 F_pq delta q`` (a parameter held on a node does not move), as
+    in :func:`.crossing.crossing_work`.  The slip is the same material
+    slip (F6) of the two material points now in contact."""
+    l = cp.distance if cp.length is None else cp.length
+    free = [np.ones(cp.size, bool) if a is None else np.asarray(a, bool)
+            for a in (cp.u_free, cp.v_free)]
+    return _kinematics(mesh, r, R, r_n, R_n, cp.e[idx], cp.f[idx], cp.u[idx], cp.v[idx],
+                       l[idx], cp.normal[idx], linearize,
+                       free=(free[0][idx], free[1][idx]))
+
+
+def _kinematics(mesh, r, R, r_n, R_n, ve, me, xi_s, xi_m, l, N, linearize, interior=None,
+                free=None):
+    """:class:`Slip` of the point pairs ``(ve, xi_s)``, ``(me, xi_m)``.
+    ``interior``: the master parameter moves by eq. 6.5 where True, the
+    slave's is held (:func:`slip_kinematics`); ``free = (u_free, v_free)``:
+    both move with the closest-point conditions (:func:`crossing_kinematics`)."""
     nodes = np.concatenate([mesh.nodes[ve], mesh.nodes[me]], axis=1)
-    Ns, dNs = (a.T for a in shape_functions(pairs.s_xi[idx])[:2])
-    Nm, dNm, d2Nm = (a.T for a in shape_functions(pairs.m_xi[idx]))
+    Ns, dNs, d2Ns = (a.T for a in shape_functions(xi_s))
+    Nm, dNm, d2Nm = (a.T for a in shape_functions(xi_m))
     sn, mn = mesh.nodes[ve], mesh.nodes[me]
     du = r - r_n
     phi = logm(R @ np.swapaxes(R_n, 1, 2))
@@ -156,21 +190,46 @@ def slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, linearize=True):
     out = Slip(nodes, Ns, Nm, dNm, dNs, phi, N, l, rho, t, b, g, Lam_s, phi_s - phi_m)
     if not linearize:
         return out
-    m = idx.size
+    m = ve.size
     xy = N * l[:, None]
-    den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
-    use = pairs.interior[idx] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
-    Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
-    Xi = np.zeros((m, 6, NM))                             # Delta xi (eq. 6.5)
-    Xi[:, :3, S] = Om[:, None] * y1
-    Xi[:, :3, M] = -Xi[:, :3, S]
-    Xi[:, :3, D] = Om[:, None] * xy
-    Xi = Xi.reshape(m, NC)
     outer = lambda a, c: a[:, :, None] * c[:, None, :]     # noqa: E731
+    if free is None:
+        den = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
+        use = interior & (den > 1e-8 * np.sum(y1 * y1, axis=1))
+        Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
+        Xi = np.zeros((m, 6, NM))                         # Delta xi (eq. 6.5)
+        Xi[:, :3, S] = Om[:, None] * y1
+        Xi[:, :3, M] = -Xi[:, :3, S]
+        Xi[:, :3, D] = Om[:, None] * xy
+        Xi, Us = Xi.reshape(m, NC), None
+    else:
+        x2 = _at(d2Ns, r, sn)
+        Fpq = np.zeros((m, 2, 6, NM))                     # delta F_u, delta F_v
+        Fpq[:, 0, :3, S], Fpq[:, 0, :3, M], Fpq[:, 0, :3, DS] = x1, -x1, xy
+        Fpq[:, 1, :3, S], Fpq[:, 1, :3, M], Fpq[:, 1, :3, D] = -y1, y1, -xy
+        Fpq = Fpq.reshape(m, 2, NC)
+        Fpp = np.empty((m, 2, 2))
+        Fpp[:, 0, 0] = np.sum(x1 * x1, axis=1) + np.sum(xy * x2, axis=1)
+        Fpp[:, 1, 1] = np.sum(y1 * y1, axis=1) - np.sum(xy * y2, axis=1)
+        Fpp[:, 0, 1] = Fpp[:, 1, 0] = -np.sum(x1 * y1, axis=1)
+        for k, f in enumerate(free):       # a parameter held on a node does not move
+            held = ~f
+            Fpq[held, k] = 0.0
+            Fpp[held, k, :] = 0.0
+            Fpp[held, :, k] = 0.0
+            Fpp[held, k, k] = 1.0
+        P = -np.linalg.solve(Fpp, Fpq)                    # Delta (u, v)
+        Us, Xi = P[:, 0], P[:, 1]
     P = np.eye(3) - outer(N, N)
-    DN = P @ (XREL - outer(y1, Xi)) / l[:, None, None]
-    NX = N @ XREL                                          # y' . N = 0 where Xi != 0
-    Dw_s = tangent_op(phi_s) @ PHIS
+    XR = XREL - outer(y1, Xi)                             # delta (x - y)
+    Phis, X1s = PHIS, X1
+    if Us is not None:
+        XR = XR + outer(x1, Us)
+        Phis = PHIS + outer(_at(dNs, phi, sn), Us)
+        X1s = X1 + outer(x2, Us)
+    DN = P @ XR / l[:, None, None]
+    NX = N @ XREL                           # x' . N = y' . N = 0 where a parameter moves
+    Dw_s = tangent_op(phi_s) @ Phis
     Phim = PHIM + outer(_at(dNm, phi, mn), Xi)
     Dw_m = tangent_op(phi_m) @ Phim
     Nh = hat(N)
@@ -178,12 +237,15 @@ def slip_kinematics(mesh, r, R, r_n, R_n, pairs, idx, linearize=True):
     Da_m = np.swapaxes(Lam_m, 1, 2) @ (Nh @ Dw_m + DN)
     Dg = (XREL - outer(_at(dNm, du, mn), Xi) - outer(arm, 0.5 * NX)
           - rho[:, None, None] * (2.0 * DN - Da_s - Da_m))
-    Dv = (P @ X1 - outer(N, np.einsum("mc,mcj->mj", x1, DN))
+    if Us is not None:
+        Dg = Dg + outer(_at(dNs, du, sn), Us)
+    Dv = (P @ X1s - outer(N, np.einsum("mc,mcj->mj", x1, DN))
           - np.sum(N * x1, axis=1)[:, None, None] * DN)
     Dt = (np.eye(3) - outer(t, t)) @ Dv / nv[:, None, None]
     Db = -hat(t) @ DN + Nh @ Dt
     out.Xi, out.NX, out.DN, out.Dg, out.Dt, out.Db, out.Dw_s = Xi, NX, DN, Dg, Dt, Db, Dw_s
-    out.Drel = PHIS - Phim
+    out.Us = Us
+    out.Drel = Phis - Phim
     return out
 
 
