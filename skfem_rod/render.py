@@ -1127,7 +1127,8 @@ def _gif_palette(images, fixed):
 
 def render_animation(filename, configurations, radius, *, window_size=(640, 480),
                      fps=4, titles=None, camera="iso", contact_points=None,
-                     contact_states=None, color=ROD_COLOR, stripe_color=STRIPE_COLOR,
+                     contact_states=None, crossing_points=None, contact_radius=None,
+                     color=ROD_COLOR, stripe_color=STRIPE_COLOR,
                      stripe_width=0.35, n_around=32, background="white",
                      hold_last=2, off_screen=None, reference=None, supports=None,
                      axes=True, legend=True):
@@ -1166,6 +1167,13 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     contact_states : sequence of array_like (m_k,), optional
         Integer states per frame (0 open, 1 stick, 2 slip); without them the
         markers take the frictionless contact colour :data:`CONTACT_COLOR`.
+    crossing_points : sequence of array_like (k_k, 3), optional
+        The crossing pairs' places per frame
+        (:meth:`skfem_rod.Result.crossing_points`), drawn in
+        :data:`CROSSING_COLOR` as :func:`render_rod` draws them.
+    contact_radius : float, optional
+        Radius of the contact and crossing markers (default 1.25 times the
+        largest tube radius of the frame).
     color, stripe_color, stripe_width, n_around, background
         As in :func:`render_rod`.
     hold_last : int, default 2
@@ -1204,7 +1212,8 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps = {fps!r}; expected a number > 0")
     for name, seq in (("titles", titles), ("contact_points", contact_points),
-                      ("contact_states", contact_states)):
+                      ("contact_states", contact_states),
+                      ("crossing_points", crossing_points)):
         if seq is not None and len(seq) != len(confs):
             raise ValueError(f"{name} has {len(seq)} entries for {len(confs)} "
                              f"configurations; give one per configuration")
@@ -1216,8 +1225,10 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
             raise ValueError(f"camera = {camera!r}; expected a pyvista view name "
                              f"('iso', 'xy', ...) or a non-zero 3-vector")
 
-    tubes, markers = [], []
+    tubes, markers, crossings = [], [], []
     rmax = float(np.max(radius))
+    if contact_radius is not None and not (np.isfinite(contact_radius) and contact_radius > 0):
+        raise ValueError(f"contact_radius = {contact_radius!r}; expected > 0")
     for k, (pts, frs) in enumerate(confs):
         pts, frs = validate_points_frames(pts, frs)
         r = _radii(radius, pts.shape[0])
@@ -1238,9 +1249,16 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
                             f"contact_states[{k}] has {len(rgb)} entries but "
                             f"contact_points[{k}] has {len(cp)} points")
                     cloud.point_data["rgb"] = rgb
-                cloud = cloud.glyph(geom=pv.Sphere(radius=1.25 * r.max(), theta_resolution=16,
-                                                   phi_resolution=16), scale=False, orient=False)
+        ball = pv.Sphere(radius=1.25 * r.max() if contact_radius is None else contact_radius,
+                         theta_resolution=16, phi_resolution=16)
+        if cloud is not None:
+            cloud = cloud.glyph(geom=ball, scale=False, orient=False)
         markers.append(cloud)
+        xs = None
+        if crossing_points is not None and np.size(crossing_points[k]):
+            xp = _as_points(f"crossing_points[{k}]", crossing_points[k])
+            xs = pv.PolyData(xp).glyph(geom=ball, scale=False, orient=False)
+        crossings.append(xs)
 
     statics = []
     if reference is not None:
@@ -1250,7 +1268,8 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
     blocks, balls = _support_meshes(pv, supports, 3.5 * rmax)
     statics += [(kind, m) for kind, m in (("block", blocks), ("ball", balls)) if m is not None]
 
-    all_pts = np.vstack([t.points for t in tubes] + [m.points for m in markers if m is not None]
+    all_pts = np.vstack([t.points for t in tubes]
+                        + [m.points for m in markers + crossings if m is not None]
                         + [m.points for _, m in statics])
     if len(all_pts) > 50000:
         all_pts = all_pts[:: len(all_pts) // 50000 + 1]
@@ -1264,7 +1283,8 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
         base_entries.insert(0, {"ghost": ("ghost", REFERENCE_COLOR, "reference shape"),
                                 "block": ("box", SUPPORT_COLOR, _block_label(supports)),
                                 "ball": ("dot", SUPPORT_COLOR, "pin")}[kind])
-    fixed = [background, color, stripe_color, CONTACT_COLOR, *STATE_COLORS]
+    fixed = [background, color, stripe_color, CONTACT_COLOR, *STATE_COLORS] \
+        + ([CROSSING_COLOR] if crossing_points is not None else [])
 
     images = []
     with quiet_vtk():
@@ -1306,6 +1326,12 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
                                 ambient=0.2, name="contacts", reset_camera=False, **kw)
                 else:
                     pl.remove_actor("contacts")
+                if crossings[k] is not None:
+                    pl.add_mesh(crossings[k], color=CROSSING_COLOR, smooth_shading=True,
+                                ambient=0.2, name="crossings", reset_camera=False)
+                    entries.append(("dot", CROSSING_COLOR, "crossing pair"))
+                else:
+                    pl.remove_actor("crossings")
                 pl.camera = cam.copy()
                 scene = np.asarray(pl.screenshot(None, return_img=True))[..., :3]
                 spec = _layout(width, height, titles[k], False)[3] if titles else None

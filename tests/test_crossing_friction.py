@@ -420,3 +420,50 @@ def test_generalized_jacobian_with_crossing_friction(gamma, want, fading, monkey
             assert np.abs(fd[1][-3:]).max() > 0, part
             assert np.abs(fd[1][-3:] - J[1][-3:]).max() <= 1e-6 * np.abs(fd[1][-3:]).max(), part
             assert np.abs(fd[0] - J[0]).max() <= 1e-6 * np.abs(fd[0]).max(), part
+
+
+@pytest.mark.parametrize("curve, fading", [("elements", False), ("smooth", False),
+                                           ("smooth", True)])
+def test_the_problems_tangent_with_crossing_friction(curve, fading, monkeypatch):
+    """``Problem.evaluate`` with friction at the crossing pairs (the
+    overlapping figure-eight of test_nonsmooth_crossing, on the P3
+    centreline or the smooth contact curve, whose dofs map to the rod's;
+    ``fading``: the flattened eight at 42 degrees, weight 0.55, with a gap
+    offset), a last converged state a step away and carried multipliers:
+    the whole tangent against central differences of the residual."""
+    from test_nonsmooth_crossing import _pressed_figure_eight
+    from skfem_rod import Rod, Section
+    from skfem_rod.contact import ContactOptions
+    rng = np.random.default_rng(7)
+    rod, eps = _pressed_figure_eight()
+    if fading:
+        shape, _ = _figure_eight(eps, 1.92 * eps, flatten=np.tan(np.radians(21.0)))
+        rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
+        rod.clamp("start").clamp("end")
+        monkeypatch.setattr(ContactOptions, "crossing_threshold", lambda self: WIDE)
+    rod.enable_contact(crossing=True, gamma_T=0.1, curve=curve)
+    p = Problem(rod)
+    r = rod.r0 + 1e-2 * eps * rng.normal(size=rod.r0.shape)
+    R = rod.R0
+    p.reference = (r - 0.05 * eps * rng.normal(size=r.shape),
+                   expm(0.02 * rng.normal(size=(r.shape[0], 3))).transpose(0, 2, 1) @ R)
+    cp = p.evaluate(r, R, 0.0).contact.crossing
+    assert cp.size == 1
+    p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]), offset=np.array([0.1 * eps]),
+                                 friction=np.array([[0.2, -0.1, 0.05]]))
+    ev = p.evaluate(r, R, 0.0)
+    cf = ev.contact.crossing_friction
+    assert cf.index.size == 1 and cf.state_T[0] == law.SLIP
+    assert (0.05 < ev.contact.crossing.weight[0] < 0.95) if fading else \
+        ev.contact.crossing.weight[0] == 1.0
+    d = rng.normal(size=p.mesh.n_dofs)
+    d.reshape(-1, 6)[:, 3:] *= 0.3
+    h = 1e-7
+    fp = p.evaluate(*p.update(r, R, d, h), 0.0, tangent=False).residual
+    fm = p.evaluate(*p.update(r, R, d, -h), 0.0, tangent=False).residual
+    fd = (fp - fm) / (2 * h)
+    assert np.abs(fd - ev.tangent @ d).max() <= 1e-6 * np.abs(fd).max()
+    # the friction's part is visible in it
+    p.contact = dataclasses.replace(p.contact, crossing_friction=False)
+    K0 = p.evaluate(r, R, 0.0).tangent
+    assert np.abs((ev.tangent - K0) @ d).max() > 1e-4 * np.abs(fd).max()

@@ -186,6 +186,45 @@ def test_the_render_marks_the_crossing_pairs(solved, tmp_path):
     assert (near(bare, CROSSING_COLOR) & changed).sum() == 0
 
 
+def test_the_animation_marks_the_crossing_pairs(solved, tmp_path):
+    """``render.render_animation`` draws each frame's crossing pairs
+    (``crossing_points``, one array per frame) in
+    :data:`~skfem_rod.render.CROSSING_COLOR`: the frames of the steps with a
+    pair carry pink pixels where the same animation without them has
+    none (the GIF palette keeps the colour)."""
+    pytest.importorskip("pyvista")
+    from PIL import Image
+    from skfem_rod.render import CROSSING_COLOR, ROD_COLOR, render_animation
+    from test_export_render import near
+    rod, res = solved
+    confs = [(f["r"], f["R"]) for f in (res.sample(4, k) for k in range(len(res.steps)))]
+    xs = [res.crossing_points(k) for k in range(len(res.steps))]
+    assert xs[0].size == 0 and all(x.shape == (1, 3) for x in xs[1:])
+
+    def frames(path, **kw):
+        # (the d1 stripe in the tube's colour, no axes triad: their shades
+        # come near pink)
+        render_animation(path, confs, EPS, window_size=(480, 360), hold_last=0, legend=False,
+                         contact_radius=0.03, stripe_color=ROD_COLOR, axes=False, **kw)
+        im = Image.open(path)
+        out = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            out.append(np.asarray(im.convert("RGB"), float) / 255.0)
+        return out
+
+    marked = frames(tmp_path / "x.gif", crossing_points=xs)
+    bare = frames(tmp_path / "o.gif")
+    assert len(marked) == len(bare) == len(res.steps)
+    for k, (a, b) in enumerate(zip(marked, bare)):
+        changed = np.abs(a - b).sum(axis=2) > 0.1
+        pink = (near(a, CROSSING_COLOR) & changed).sum()
+        assert (pink > 50) if xs[k].size else pink == 0, k
+        assert not near(b, CROSSING_COLOR).any()
+    with pytest.raises(ValueError, match="crossing_points has 1 entries"):
+        render_animation(tmp_path / "y.gif", confs, EPS, crossing_points=xs[:1])
+
+
 def test_the_files_carry_the_crossing_forces(solved):
     """The VTU point data ``crossing_force`` holds each pair's point force at
     the samples nearest to its two points, and the JSON summary's step
