@@ -221,3 +221,18 @@ def test_twisted_rod_reports_no_snap_when_the_torque_only_rises():
     assert ana["snapped"] and ana["snap_turns_after"] == pytest.approx(0.8)
     assert ana["torque_before_snap"] == pytest.approx(1.5)
     assert [name for name, _ in demo.stages(rising)] == ["straight"]
+
+
+def test_crossing_friction_demo_slips_then_sticks_within_coulomb(tmp_path):
+    """demos/crossing_friction.py: the crossing slips at its first contact
+    and sticks at every later step; Coulomb's law at every step to the
+    loop's tolerance; the results file holds the records."""
+    demo = load("crossing_friction")
+    summary = demo.main(str(tmp_path), render=False, verbose=False)
+    assert summary["converged"], summary["message"]
+    states = [r["state"] for r in summary["records"] if r["pairs"]]
+    assert states[0] == "slip" and set(states[1:]) == {"stick"} and len(states) >= 3
+    c = summary["coulomb"]
+    assert c["bound_excess"] <= 1e-9 and c["misalignment"] <= c["tolerance"]
+    saved = json.loads((tmp_path / "results.json").read_text())
+    assert [r["state"] for r in saved["records"] if r["pairs"]] == states
