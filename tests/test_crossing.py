@@ -504,10 +504,9 @@ def test_a_crossing_sliding_over_a_node_keeps_its_force_continuous():
     assert np.abs(np.diff(W)).max() < 0.02
 
 
-def test_minimum_on_a_node_energy_force_tangent():
+def on_a_node():
     """Strand A bent at a node (a V pointing at strand B, crossing above the
-    node at 90 degrees): the minimum sits on the node (the kink of the C0
-    centreline holds it), found once, with u held and v free."""
+    node at 90 degrees), four elements of length H."""
     mesh = RodMesh(4 * H, 4)
     r = np.zeros((mesh.n_nodes, 3))
     u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
@@ -515,6 +514,14 @@ def test_minimum_on_a_node_energy_force_tangent():
     r[mesh.nodes[1]] = np.outer(u, [H, 0, 0]) + np.outer(1 - u, [0, 0, 0.5 * EPS])
     r[mesh.nodes[3]] = np.outer(u - 0.4, [0, H, 0]) + [0, 0, 2.2 * EPS]
     r[mesh.nodes[2, 2:]] = [[H, 0, 3 * H], [0, -H, 3 * H]]
+    return mesh, r
+
+
+def test_minimum_on_a_node_energy_force_tangent():
+    """Strand A bent at a node (:func:`on_a_node`): the minimum sits on the
+    node (the kink of the C0 centreline holds it), found once, with u held
+    and v free."""
+    mesh, r = on_a_node()
     cp = crossing_pairs(mesh, r, EPS, np.pi * EPS)
     assert cp.size == 1 and not cp.u_free[0] and cp.v_free[0]
     assert cp.s[0] == pytest.approx(H) and cp.distance[0] == pytest.approx(1.7 * EPS)

@@ -19,10 +19,12 @@ from skfem_rod.contact.friction_assembly import FrictionParams, crossing_frictio
 from skfem_rod.contact.law import gap, normal_force
 from skfem_rod.contact.slip import SlipState
 from skfem_rod.element import shape_functions
-from skfem_rod.mesh import RodMesh
+from skfem_rod.problem import Problem
 from skfem_rod.rotations import expm
 
-from test_crossing import EPS, H, two_strands
+from test_core import _figure_eight
+from test_crossing import EPS, on_a_node, two_strands
+from test_crossing_record import EPS as EPS8, nodal, pressed
 
 #: the fading scenes' threshold (as tests/test_crossing.py): 25-30 degree
 #: crossings fade
@@ -31,19 +33,6 @@ REGIMES = {                      # mu_N, gamma_T, gamma_R, mu_T, mu_R
     "slip": (0.1, 0.3, 0.05, 0.05, 0.05),
     "stick": (0.1, 5.0, 5.0, 50.0, 50.0),
 }
-
-
-def on_a_node():
-    """Strand A bent at a node under strand B (tests/test_crossing.py):
-    the minimum sits on the node, ``u`` held, ``v`` free."""
-    mesh = RodMesh(4 * H, 4)
-    r = np.zeros((mesh.n_nodes, 3))
-    u = np.array([0.0, 1.0, 1 / 3, 2 / 3])
-    r[mesh.nodes[0]] = np.outer(u - 1, [H, 0, 0]) + np.outer(u, [0, 0, 0.5 * EPS])
-    r[mesh.nodes[1]] = np.outer(u, [H, 0, 0]) + np.outer(1 - u, [0, 0, 0.5 * EPS])
-    r[mesh.nodes[3]] = np.outer(u - 0.4, [0, H, 0]) + [0, 0, 2.2 * EPS]
-    r[mesh.nodes[2, 2:]] = [[H, 0, 3 * H], [0, -H, 3 * H]]
-    return mesh, r
 
 
 class Scene:
@@ -171,11 +160,6 @@ def test_a_rigid_motion_gives_no_slip():
 
 
 # -- a scene: the pressed figure-eight pulled sideways -------------------------
-
-from skfem_rod.problem import Problem  # noqa: E402
-
-from test_crossing_record import EPS as EPS8, nodal, pressed  # noqa: E402
-from test_core import _figure_eight  # noqa: E402
 
 
 def sideways(gamma, pull, crossing_friction=True, constant=False):
@@ -328,6 +312,21 @@ def test_a_restart_carries_the_crossing_pairs_friction():
                                .friction, rtol=1e-3)
 
 
+def test_the_scene_summary_holds_the_crossing_friction():
+    """A scene's JSON summary (``scene.summary``) holds the last step's
+    crossing pairs with their friction forces and states."""
+    from types import SimpleNamespace
+    from skfem_rod.scene import summary
+    rod, res = solved(1.0)
+    clamps = [dict(where="start"), dict(where="end")]
+    out = summary(SimpleNamespace(name="x", source=None, title="", data=dict(support=clamps)),
+                  res)
+    x = out["end_state"]["contact"]["crossing"]
+    cr = res.steps[-1].contact.crossing
+    np.testing.assert_array_equal(x["friction"], cr.friction)
+    assert np.linalg.norm(cr.friction) > 0 and list(x["state"]) == [law.STICK]
+
+
 @pytest.mark.slow
 def test_a_crossing_slides_where_friction_cannot_hold_it():
     """gamma_T = 0.05: the crossing slides at every step at the Coulomb
@@ -349,6 +348,34 @@ def test_a_crossing_slides_where_friction_cannot_hold_it():
 
 # -- the generalized Newton: the crossing pairs' friction multipliers ----------
 
+def flattened_eight(monkeypatch):
+    """The figure-eight of test_nonsmooth_crossing's fading test: flattened
+    so that its strands cross at 42 degrees (1.92 eps apart, 60 elements,
+    both ends clamped), with the wide threshold: its crossing pair fades
+    (weight 0.55 at the states used here)."""
+    from skfem_rod import Rod, Section
+    from skfem_rod.contact import ContactOptions
+    eps = 0.01
+    shape, _ = _figure_eight(eps, 1.92 * eps, flatten=np.tan(np.radians(21.0)))
+    rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
+    rod.clamp("start").clamp("end")
+    monkeypatch.setattr(ContactOptions, "crossing_threshold", lambda self: WIDE)
+    return rod
+
+
+def step_away(p, r, R, eps, rng):
+    """The problem ``p`` at ``(r, R)`` with one crossing pair: a random last
+    converged state a step away and carried multipliers on the pair
+    (normal 0.5, a gap offset of 0.1 eps, which a fading pair's f_N reads
+    through its weight, and a friction multiplier)."""
+    p.reference = (r - 0.05 * eps * rng.normal(size=r.shape),
+                   expm(0.02 * rng.normal(size=(r.shape[0], 3))).transpose(0, 2, 1) @ R)
+    cp = p.evaluate(r, R, 0.0).contact.crossing
+    assert cp.size == 1
+    p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]), offset=np.array([0.1 * eps]),
+                                 friction=np.array([[0.2, -0.1, 0.05]]))
+
+
 @pytest.mark.parametrize("gamma, want, fading", [(0.1, law.SLIP, False),
                                                  (5.0, law.STICK, False),
                                                  (0.1, law.SLIP, True)])
@@ -367,26 +394,13 @@ def test_generalized_jacobian_with_crossing_friction(gamma, want, fading, monkey
     rng = np.random.default_rng(5)
     rod, eps = _pressed_figure_eight()
     if fading:
-        # the flattened figure-eight of test_nonsmooth_crossing's fading
-        # test (strands at 42 degrees, the wide threshold): weight 0.55
-        from skfem_rod import Rod, Section
-        from skfem_rod.contact import ContactOptions
-        shape, _ = _figure_eight(eps, 1.92 * eps, flatten=np.tan(np.radians(21.0)))
-        rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
-        rod.clamp("start").clamp("end")
-        monkeypatch.setattr(ContactOptions, "crossing_threshold", lambda self: WIDE)
+        rod = flattened_eight(monkeypatch)
     rod.enable_contact(crossing=True, gamma_T=gamma)
     p = Problem(rod)
     r, R = rod.r0, rod.R0
     if fading:
         r = r + 1e-2 * eps * np.random.default_rng(1).normal(size=r.shape)
-    p.reference = (r - 0.05 * eps * rng.normal(size=r.shape),
-                   expm(0.02 * rng.normal(size=(r.shape[0], 3))).transpose(0, 2, 1) @ R)
-    cp = p.evaluate(r, R, 0.0).contact.crossing
-    assert cp.size == 1
-    # a gap offset: a fading pair's f_N reads it through its weight
-    p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]), offset=np.array([0.1 * eps]),
-                                 friction=np.array([[0.2, -0.1, 0.05]]))
+    step_away(p, r, R, eps, rng)
     with p.crossing_unknowns(), p.friction_unknowns():
         ev = p.evaluate(r, R, 0.0)
         cs = nonsmooth.contact_blocks(p, ev, crossing=True)
@@ -432,25 +446,15 @@ def test_the_problems_tangent_with_crossing_friction(curve, fading, monkeypatch)
     offset), a last converged state a step away and carried multipliers:
     the whole tangent against central differences of the residual."""
     from test_nonsmooth_crossing import _pressed_figure_eight
-    from skfem_rod import Rod, Section
-    from skfem_rod.contact import ContactOptions
     rng = np.random.default_rng(7)
     rod, eps = _pressed_figure_eight()
     if fading:
-        shape, _ = _figure_eight(eps, 1.92 * eps, flatten=np.tan(np.radians(21.0)))
-        rod = Rod(shape, Section.circle(E=1e7, nu=0.3, radius=eps), 60)
-        rod.clamp("start").clamp("end")
-        monkeypatch.setattr(ContactOptions, "crossing_threshold", lambda self: WIDE)
+        rod = flattened_eight(monkeypatch)
     rod.enable_contact(crossing=True, gamma_T=0.1, curve=curve)
     p = Problem(rod)
     r = rod.r0 + 1e-2 * eps * rng.normal(size=rod.r0.shape)
     R = rod.R0
-    p.reference = (r - 0.05 * eps * rng.normal(size=r.shape),
-                   expm(0.02 * rng.normal(size=(r.shape[0], 3))).transpose(0, 2, 1) @ R)
-    cp = p.evaluate(r, R, 0.0).contact.crossing
-    assert cp.size == 1
-    p.multipliers.rekey_crossing(cp.key.copy(), np.array([0.5]), offset=np.array([0.1 * eps]),
-                                 friction=np.array([[0.2, -0.1, 0.05]]))
+    step_away(p, r, R, eps, rng)
     ev = p.evaluate(r, R, 0.0)
     cf = ev.contact.crossing_friction
     assert cf.index.size == 1 and cf.state_T[0] == law.SLIP

@@ -432,21 +432,35 @@ def friction_work(mesh, state, pairs, normal, params, tangent=True, K_normal=Non
         return _no_friction(n, idx, tangent, K_normal)
     sl, w, fN, dfN = pairs.slave[idx], pairs.weight[idx], fN_all[idx], dfN_all[idx]
     kin = slip_kinematics(mesh, state.r, state.R, state.r_n, state.R_n, pairs, idx, tangent)
-    fo = _forces(kin, state.lam_T[sl], state.lam_R[sl], fN, dfN, p, tangent)
+    force, K, out, _ = _work(mesh, kin, w, state.lam_T[sl], state.lam_R[sl], fN, dfN, p, idx,
+                             sl, tangent, multiplier_jacobian, pairs.s_elem[idx],
+                             pairs.m_elem[idx], K_normal, cache)
+    return force, K, out
+
+
+def _work(mesh, kin, w, lam_T, lam_R, fN, dfN, p, idx, slave, tangent, multiplier_jacobian,
+          ve, me, K_normal=None, cache=None):
+    """The laws on the pairs' slips (:class:`.slip.Slip` ``kin``, weights
+    ``w``, carried multipliers, normal forces ``fN`` and their derivatives
+    ``dfN``): residual, tangent (or None), :class:`FrictionOutput` (``idx``
+    and ``slave`` its indices) and the laws' :class:`_Forces`; with the
+    tangent the output's ``dresidual_dfN`` and (``multiplier_jacobian``)
+    ``jacobian``."""
+    n = mesh.n_dofs
+    fo = _forces(kin, lam_T, lam_R, fN, dfN, p, tangent)
     force = _residual(n, kin, w, fo.F, fo.couple)
     back = (lambda f: pulled_back(kin, f)) if p.push_forward else (lambda f: f)
-    out = FrictionOutput(idx, sl, fo.gT, fo.gR, fo.fT, fo.fR, fo.resT.state, fo.resR.state, fN,
-                         back(fo.fT), back(fo.fR), kin.t)
+    out = FrictionOutput(idx, slave, fo.gT, fo.gR, fo.fT, fo.fR, fo.resT.state, fo.resR.state,
+                         fN, back(fo.fT), back(fo.fR), kin.t)
     if not tangent:
-        return force, None, out
+        return force, None, out, fo
     dofs, loc = _local(kin, w, *_dforces_dfN(kin, fo, p))
     out.dresidual_dfN = (dofs.reshape(idx.size, 48), loc.reshape(idx.size, 48))
     if multiplier_jacobian:
         out.jacobian = _multiplier_jacobian(kin, fo, p, w)
     C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
-    K = _expand(mesh, kin, pairs.s_elem[idx], pairs.m_elem[idx], C, K_normal,
-                PatternCache() if cache is None else cache)
-    return force, K, out
+    K = _expand(mesh, kin, ve, me, C, K_normal, PatternCache() if cache is None else cache)
+    return force, K, out, fo
 
 
 def crossing_friction_work(mesh, state, cp, fN, dfN, params, tangent=True, dw=None,
@@ -485,19 +499,11 @@ def crossing_friction_work(mesh, state, cp, fN, dfN, params, tangent=True, dw=No
         return _no_friction(n, idx, tangent, None)
     w = np.ones(cp.size)[idx] if cp.weight is None else cp.weight[idx]
     kin = crossing_kinematics(mesh, state.r, state.R, state.r_n, state.R_n, cp, idx, tangent)
-    fo = _forces(kin, state.lam_T[idx], state.lam_R[idx], fN[idx], dfN[idx], p, tangent)
-    force = _residual(n, kin, w, fo.F, fo.couple)
-    back = (lambda f: pulled_back(kin, f)) if p.push_forward else (lambda f: f)
-    out = FrictionOutput(idx, idx, fo.gT, fo.gR, fo.fT, fo.fR, fo.resT.state, fo.resR.state,
-                         fN[idx], back(fo.fT), back(fo.fR), kin.t)
+    force, K, out, fo = _work(mesh, kin, w, state.lam_T[idx], state.lam_R[idx], fN[idx],
+                              dfN[idx], p, idx, idx, tangent, multiplier_jacobian, cp.e[idx],
+                              cp.f[idx])
     if not tangent:
         return force, None, out
-    dofs, loc = _local(kin, w, *_dforces_dfN(kin, fo, p))
-    out.dresidual_dfN = (dofs.reshape(idx.size, 48), loc.reshape(idx.size, 48))
-    if multiplier_jacobian:
-        out.jacobian = _multiplier_jacobian(kin, fo, p, w)
-    C = _core(kin, w, fo.F, fo.DF, fo.couple, fo.Dcouple)
-    K = _expand(mesh, kin, cp.e[idx], cp.f[idx], C, None, PatternCache())
     if dw is not None:
         Wq = sp.coo_matrix(dw[idx])
         if Wq.nnz:
@@ -505,7 +511,7 @@ def crossing_friction_work(mesh, state, cp, fN, dfN, params, tangent=True, dw=No
             # through the factor and through the gap
             off = np.zeros(cp.size)[idx] if offset is None else np.asarray(offset, float)[idx]
             m = idx.size
-            _, per_w = _local(kin, np.ones(m), fo.F, fo.couple)
+            dofs, per_w = _local(kin, np.ones(m), fo.F, fo.couple)
             per_f = (off * dfN[idx])[:, None] * out.dresidual_dfN[1]
             vec = (per_w.reshape(m, 48) + per_f)[Wq.row]             # (nnz, 48)
             rows = dofs.reshape(m, 48)[Wq.row]
