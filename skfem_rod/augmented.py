@@ -114,7 +114,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             # plies: see rescue in step) made it diverge
             problem.multipliers = problem.multipliers.nominal_penalty()
             why = rep.reason
-            r, R, lam, rep = rescue(previous, kept)
+            r, R, lam, rep = rescue(previous, passed_with)
             total += rep.iterations
             rescue = None
             if rep.converged:
@@ -162,7 +162,7 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             problem.multipliers = saved
             rep.newton_total = total
             return r, R, lam, rep
-        previous, kept = (r, R, lam), problem.multipliers.copy()
+        previous, passed_with = (r, R, lam), problem.multipliers.copy()
         ce = rep.evaluation.contact
         pen, opened, d, dc = violations(problem, ce)
         done = pen <= c.tolerance * c.radius and opened <= c.tolerance * c.radius

@@ -577,7 +577,10 @@ class Problem:
             m.follow_crossing(cp)
             lam = carry(m.crossing_key, m.crossing, cp.key)
             off = m.crossing_offsets(cp.key)
-            rows = self.crossing_jacobian or (friction and c.crossing_friction and not frozen)
+            # friction at the crossing pairs: the tangential law only
+            # (ContactOptions.crossing_friction_params)
+            cfric = bool(friction and c.crossing_friction and c.gamma_T > 0)
+            rows = self.crossing_jacobian or (cfric and not frozen)
             out = crossing_work(mesh, r, cp, lam, self.crossing_compliance(), c.radius, tangent,
                                 fade=not frozen, offset=off, weight_rows=tangent and rows)
             ec, fc, Kc, fNc = out[:4]
@@ -590,7 +593,7 @@ class Problem:
             # a fading pair's offset fades with it (crossing_work)
             ce.crossing_gap = 2.0 * c.radius + cp.weight * off - cp.distance
             ce.crossing_offset = off
-            if friction and c.crossing_friction:
+            if cfric:
                 ff, Kf, ce.crossing_friction = self._crossing_friction(
                     mesh, r, R, reference, cp, lam, off, tangent, None if frozen else dw)
                 force = force + ff

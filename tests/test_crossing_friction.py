@@ -471,3 +471,19 @@ def test_the_problems_tangent_with_crossing_friction(curve, fading, monkeypatch)
     p.contact = dataclasses.replace(p.contact, crossing_friction=False)
     K0 = p.evaluate(r, R, 0.0).tangent
     assert np.abs((ev.tangent - K0) @ d).max() > 1e-4 * np.abs(fd).max()
+
+
+def test_no_crossing_friction_work_without_gamma_T():
+    """With the rotational law alone (``gamma_R > 0``, ``gamma_T = 0``) or
+    ``crossing_friction=False`` the crossing pairs carry no friction: the
+    evaluation has no crossing friction output (the friction work is not
+    evaluated there)."""
+    from test_nonsmooth_crossing import _pressed_figure_eight
+    for kw in (dict(gamma_T=0.0, gamma_R=1e-3), dict(gamma_T=0.1, crossing_friction=False)):
+        rod, eps = _pressed_figure_eight()
+        rod.enable_contact(crossing=True, **kw)
+        p = Problem(rod)
+        p.reference = (rod.r0, rod.R0)
+        ce = p.evaluate(rod.r0, rod.R0, 0.0).contact
+        assert ce.crossing.size == 1 and ce.crossing_fN[0] > 0
+        assert ce.crossing_friction is None and ce.crossing_dw is None
