@@ -46,8 +46,8 @@ STRIPE_COLOR = "#d62728"    # material line along d1 (red)
 #: Colour of frictionless contact points (purple: green and orange are the
 #: stick and slip of :data:`STATE_COLORS`, one code in every picture).
 CONTACT_COLOR = "#9467bd"
-#: Colour of the crossing pairs' contact points (pink: point forces of
-#: crossing strands, which carry no friction;
+#: Colour of the crossing pairs' contact points (pink: the point pairs of
+#: crossing strands, whatever their friction state;
 #: :meth:`skfem_rod.Result.crossing_points`).
 CROSSING_COLOR = "#e377c2"
 GLYPH_COLOR = "#222222"     # forces (black arrows)
