@@ -168,19 +168,22 @@ class Multipliers:
     def crossing_offsets(self, key):
         """The gap offsets of crossing pairs with the keys ``key``, carried
         by place from the held keys (0 for new places)."""
-        from .contact.crossing import carry
-        if self.crossing_offset.size != len(self.crossing_key):
-            return np.zeros(len(key))
-        return carry(self.crossing_key, self.crossing_offset, key)
+        return self._by_place(self.crossing_offset, key)
 
     def crossing_frictions(self, key):
         """The friction multipliers ``(k, 3)`` of crossing pairs with the
         keys ``key``, carried by place from the held keys (0 for new
         places)."""
+        return self._by_place(self.crossing_friction, key)
+
+    def _by_place(self, values, key):
+        """Per-pair ``values`` of the held keys carried by place to the keys
+        ``key`` (:func:`skfem_rod.contact.crossing.carry`); zeros where they
+        do not belong to the held keys (set before the keys changed)."""
         from .contact.crossing import carry
-        if self.crossing_friction.shape[0] != len(self.crossing_key):
-            return np.zeros((len(key), 3))
-        return carry(self.crossing_key, self.crossing_friction, key)
+        if values.shape[0] != len(self.crossing_key):
+            return np.zeros((len(key),) + values.shape[1:])
+        return carry(self.crossing_key, values, key)
 
     def rekey_crossing(self, key, lam, offset=None, friction=None):
         """New crossing keys and multipliers (a multiplier update) with

@@ -1249,15 +1249,15 @@ def render_animation(filename, configurations, radius, *, window_size=(640, 480)
                             f"contact_states[{k}] has {len(rgb)} entries but "
                             f"contact_points[{k}] has {len(cp)} points")
                     cloud.point_data["rgb"] = rgb
-        ball = pv.Sphere(radius=1.25 * r.max() if contact_radius is None else contact_radius,
-                         theta_resolution=16, phi_resolution=16)
-        if cloud is not None:
-            cloud = cloud.glyph(geom=ball, scale=False, orient=False)
-        markers.append(cloud)
         xs = None
         if crossing_points is not None and np.size(crossing_points[k]):
-            xp = _as_points(f"crossing_points[{k}]", crossing_points[k])
-            xs = pv.PolyData(xp).glyph(geom=ball, scale=False, orient=False)
+            xs = pv.PolyData(_as_points(f"crossing_points[{k}]", crossing_points[k]))
+        if cloud is not None or xs is not None:          # markers in this frame
+            ball = pv.Sphere(radius=1.25 * r.max() if contact_radius is None else contact_radius,
+                             theta_resolution=16, phi_resolution=16)
+            cloud, xs = (None if m is None else m.glyph(geom=ball, scale=False, orient=False)
+                         for m in (cloud, xs))
+        markers.append(cloud)
         crossings.append(xs)
 
     statics = []
