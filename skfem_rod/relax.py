@@ -21,7 +21,22 @@ approximated by the identity, which only slows Newton down far from
 ``y_k``).  This is backward Euler on the gradient flow ``W dy/dt = -R(y)``:
 for any ``dt`` the step lowers ``E + |y - y_k|^2/2dt`` and the iterates
 settle in a stable equilibrium (not on a saddle, unless started exactly on
-it).  :func:`flow` runs it with
+it).
+
+A flow (:class:`GradientFlow`) takes **Levenberg-Marquardt steps** first
+(:meth:`GradientFlow.linearized`): one Newton iteration of the proximal
+problem per step, ``(K + c W) dy = -R``, taken when the energy falls (the
+change estimated by the trapezoid rule on the gradients at both ends, the
+viscosity ``c`` adapted to the ratio of that change to the quadratic
+model's), refused and retried at a larger ``c`` when it rises.  This is the
+linearly implicit member of the family (pseudo-transient continuation with
+an energy test, or Newton with a shifted Hessian): a small ``c`` makes
+it Newton, with quadratic convergence to the static equilibrium, and a
+large one a short step down ``-W^{-1} R``.  It costs one linear solve per
+step where a proximal step costs a Newton solve.  Where it finds no descent
+at any viscosity (the residual jumps along the step: a contact pair
+switching), the flow starts again from its start with the proximal steps
+solved by Newton, as follows (:meth:`GradientFlow.proximal`), with
 
 * ``W`` a lumped metric per node (:func:`metric`): arclength share of the
   node times ``B / l^2`` for positions and ``B`` for spins (``B`` the larger
@@ -64,9 +79,10 @@ augmented-Lagrangian loop (:mod:`skfem_rod.augmented`) when a step fails.
 from dataclasses import replace
 
 import numpy as np
+import scipy.sparse as sp
 
-from .newton import Report, newton
-from .problem import clearance_ok
+from .newton import Report, newton, safeguarded_update
+from .problem import Increment, State, clearance_ok
 
 __all__ = ["GradientFlow", "metric", "polish", "climbs", "static_residual", "clearance_ok"]
 
@@ -117,6 +133,12 @@ def static_residual(problem, W, ev, dy, dt):
     gradient at the step's end."""
     return ev.residual - problem.to_basis(W * problem.to_spatial(dy)) / dt
 
+
+#: refused Levenberg-Marquardt steps in a row before :meth:`GradientFlow.linearized` gives up
+MAX_REFUSALS = 20
+#: the viscosity a refused Levenberg-Marquardt step raises from is at least
+#: this over ``relax_dt`` (a model that was good at a tiny viscosity)
+LM_C_LOW = 1e-6
 
 #: proximal steps of a polish (:func:`polish`) before it gives up
 POLISH_STEPS = 40
@@ -196,14 +218,159 @@ class GradientFlow:
         #: the solve's :class:`~skfem_rod.options.Deadline` (a flow stops when it passed)
         self.deadline = deadline
         self.W = metric(problem.rod, problem.fixed)
+        #: ``W`` as a sparse diagonal in the dof basis (the Levenberg-Marquardt shift)
+        self.D = sp.diags(self.W).tocsc() if problem.T is None else \
+            (problem.T.T @ sp.diags(self.W) @ problem.T).tocsc()
         self.dt = None
+        #: the viscosity the last Levenberg-Marquardt run ended with
+        self.c = None
 
     def __call__(self, r, R, lam, opts, prescribed=None, descent=False):
+        """The stable equilibrium at load factor ``lam`` (contact multipliers
+        held) reached from ``(r, R)`` down the energy, the prescribed
+        increment applied on the way, by the steps of the option
+        ``flow_steps``: Levenberg-Marquardt steps (:meth:`linearized`; with
+        contact on, by default), and where those find no descent, proximal
+        steps solved by Newton (:meth:`proximal`) from ``(r, R)`` again; or
+        proximal steps alone (without contact, by default).
+        Same signature and return value as :func:`skfem_rod.newton.newton`;
+        the report also has ``flow_steps`` (both kinds counted).
+        ``descent``: the proximal steps' descent check (a flow started
+        next to a saddle, pushed off along its unstable mode; the
+        Levenberg-Marquardt steps descend by construction)."""
+        how = opts.flow_steps
+        if how == "auto":
+            how = "linearized" if self.problem.contact is not None else "proximal"
+        if how == "proximal":
+            return self.proximal(r, R, lam, opts, prescribed, descent)
+        r1, R1, lam1, rep = self.linearized(r, R, lam, opts, prescribed)
+        if rep.converged or (self.deadline is not None and self.deadline.passed()):
+            return r1, R1, lam1, rep
+        self.problem.calls["flow_fallbacks"] += 1
+        r1, R1, lam1, out = self.proximal(r, R, lam, opts, prescribed, descent)
+        out.iterations += rep.iterations
+        out.flow_steps += rep.flow_steps
+        if not out.converged:
+            out.reason = f"{rep.reason}; then {out.reason}"
+        return r1, R1, lam1, out
+
+    def linearized(self, r, R, lam, opts, prescribed=None):
+        """Levenberg-Marquardt on the energy at load factor ``lam``: each
+        step one Newton iteration of the proximal problem about the current
+        iterate, ``(K + c W) dy = -G`` (``c = 1 / dt``, the prescribed
+        increment carried by the first steps), the viscosity adapted to
+        how well the quadratic model predicted the energy change, which is
+        estimated by the trapezoid rule on the gradients ``G`` at both ends
+        of the step (exact for a quadratic energy; the frictionless rod and
+        contact at held multipliers are conservative):
+
+        * a step that lowers the energy is taken, and ``c`` is multiplied
+          by ``max(1/3, 1 - (2 rho - 1)^3)`` (``rho`` the ratio of the
+          energy change to the model's; Nielsen's rule), or by the ratio
+          of the new residual norm to the old where that is smaller (as
+          pseudo-transient continuation's switched evolution relaxation
+          does): a good model drives ``c`` to zero and the steps to
+          Newton's, and with ``c`` falling as the residual does the
+          convergence at the end is Newton's quadratic one;
+        * a step that raises it is refused, and ``c`` grows by ``nu``
+          (2, doubled at each refusal in a row): the step shortens and
+          turns towards ``-W^{-1} G``, along which a small enough step
+          descends;
+        * a step that would leave an element chart or carry a strand
+          through another (the clearance cap, always on here) is halved
+          first (:func:`skfem_rod.newton.safeguarded_update`, no position
+          correction: it would move the state off the step the model
+          predicted).
+
+        Converged when the residual is within ``rtol`` times the force
+        scale or at its round-off floor, with the prescribed increment
+        applied: the static equilibrium itself, no polish needed.  Fails
+        after :data:`MAX_REFUSALS` refusals in a row (the energy's gradient
+        jumps along the step, e.g. a contact pair switching, so that no
+        step length descends by the estimate), or ``max_flow_steps``
+        steps.  One linear solve per step, where a proximal step costs a
+        Newton solve: the knot's cycle took 0.23 of the time
+        (docs/knot.md)."""
+        problem, W = self.problem, self.W
+        free, fixed = problem.free, problem.fixed
+        safe = replace(opts, clearance_cap=True, position_correction=False)
+        c = 1.0 / opts.relax_dt if self.c is None else self.c
+        c_low = LM_C_LOW / opts.relax_dt
+        remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
+        ev = problem.evaluate(r, R, lam)
+        history, its, steps, nu, refused = [], 0, 0, 2.0, 0
+        why = f"{opts.max_flow_steps} steps"
+        while steps < opts.max_flow_steps:
+            if self.deadline is not None and self.deadline.passed():
+                why = self.deadline.reason()
+                break
+            G = ev.residual
+            rn, scale = problem.residual_norm(ev), problem.force_scale(ev)
+            history.append(rn)
+            if not (np.isfinite(scale) and np.all(np.isfinite(G))):
+                why = "non-finite residual or forces"
+                break
+            moving = bool(np.any(remaining))
+            if not moving:
+                floor = None if rn <= opts.rtol * scale else problem.at_floor(r, R, lam, ev, rn)
+                if rn <= opts.rtol * scale or floor is not None:
+                    self.c = c
+                    return r, R, lam, Report(True, iterations=its, history=history,
+                                             evaluation=ev, flow_steps=steps,
+                                             floor=None if floor is None else floor / scale)
+            K = ev.tangent
+            A = K + c * self.D
+            try:
+                solve = problem.factor(A)
+                dy = solve(-G - A @ remaining)
+            except RuntimeError as err:                  # singular factor
+                why = f"singular tangent ({err})"
+                break
+            its += 1
+            dy[fixed] = remaining[fixed]
+            trial, alpha, why_not = safeguarded_update(problem, State(r, R, lam), Increment(dy),
+                                                       safe, np.inf, rn)
+            if trial is not None and moving:
+                # the prescribed motion: taken as far as the safeguards allow
+                r, R, ev = trial
+                remaining = remaining * (1.0 - alpha)
+                remaining[np.abs(remaining) < 1e-300] = 0.0
+                continue
+            ok = trial is not None
+            if ok:
+                d = alpha * dy
+                G1 = trial[2].residual
+                change = 0.5 * float(np.dot((G + G1)[free], d[free]))
+                model = float(np.dot(G[free], d[free])) + 0.5 * float(np.dot(d, K @ d))
+                ok = change < 0.0 or (problem.residual_norm(trial[2]) <= 0.5 * rn
+                                      and change <= 1e-12 * scale * np.linalg.norm(d))
+            if ok:
+                r, R, ev = trial
+                steps += 1
+                problem.calls["flow_steps"] += 1
+                refused, nu = 0, 2.0
+                if alpha == 1.0:                         # else the safeguards set the length
+                    rho = change / model if model < 0.0 else 1.0
+                    c *= min(max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
+                             problem.residual_norm(ev) / rn)
+                continue
+            refused += 1
+            if refused > MAX_REFUSALS:
+                why = (f"no descent after {MAX_REFUSALS} refusals in a row "
+                       f"({why_not or 'the energy rose'})")
+                break
+            c, nu = max(c, c_low) * nu, 2.0 * nu
+        return r, R, lam, Report(False, iterations=its, history=history,
+                                 reason=f"Levenberg-Marquardt stopped: {why}",
+                                 flow_steps=steps)
+
+    def proximal(self, r, R, lam, opts, prescribed=None, descent=False):
         """Proximal steps at load factor ``lam`` (contact multipliers held)
         from ``(r, R)``, the first one carrying the prescribed increment,
-        until the viscous force is below ``opts.relax_tol`` times the force
-        scale; then a plain Newton polish.  Same signature and return value
-        as :func:`skfem_rod.newton.newton`; the report also has
+        each solved by Newton, until the viscous force is below
+        ``opts.relax_tol`` times the force scale; then a plain Newton
+        polish.  Same signature and return value as
+        :func:`skfem_rod.newton.newton`; the report also has
         ``flow_steps``.  ``descent=True`` adds the descent check (a flow
         started next to a saddle, pushed off along its unstable mode)."""
         problem, W = self.problem, self.W

@@ -494,6 +494,7 @@ def test_relaxed_state_without_polish_is_reported(monkeypatch):
     warning; where the polish converges nothing is reported."""
     import warnings
     from skfem_rod import newton as newton_module, relax
+    from skfem_rod.problem import Report
     from skfem_rod.solver import RelaxedShortfall
 
     plain = newton_module.newton
@@ -515,16 +516,22 @@ def test_relaxed_state_without_polish_is_reported(monkeypatch):
         res = cantilever().solve(2, snap="relax")
     assert res.converged, res.message
     assert all(st.flow_steps > 0 and st.relaxed_residual is None for st in res.steps[1:])
-    # the polish fails too (Newton and its proximal steps): the flow's state
-    # is kept and reported
+    # the Levenberg-Marquardt steps find no descent, so proximal steps take
+    # over, and their polish fails too (Newton and its proximal steps): the
+    # flow's state is kept and reported
     def polish_fails(problem, W, c, r, R, lam, opts, prescribed=None):
         out = plain(problem, r, R, lam, opts, prescribed=prescribed)
         out[3].converged = False
         return out
+
+    def no_descent(self, r, R, lam, opts, prescribed=None):
+        return r, R, lam, Report(False, reason="no descent (test)")
     monkeypatch.setattr(relax, "polish", polish_fails)
+    monkeypatch.setattr(relax.GradientFlow, "linearized", no_descent)
     with pytest.warns(RelaxedShortfall, match="gradient flow's state"):
         res = cantilever().solve(2, snap="relax")
     assert res.converged, res.message
     for st in res.steps[1:]:
         assert 1e-14 < st.relaxed_residual < 1e-6       # the flow stopped near 1e-8
     assert sum("Newton's polish did not converge" in line for line in res.log) == 2
+    assert res.steps[-1].flow_steps > 0

@@ -1,0 +1,146 @@
+"""The gradient flow's Levenberg-Marquardt steps (skfem_rod/relax.py,
+``GradientFlow.linearized``): each taken step lowers the true energy, the
+end is Newton's equilibrium reached with Newton's quadratic convergence,
+and the prescribed increment is applied on the way."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod, Section, geometry, relax
+from skfem_rod.options import make_options
+from skfem_rod.problem import Problem
+
+EI = np.pi * 0.01 ** 4 / 4 * 1e7
+
+
+def released_arc(force):
+    """A naturally straight cantilever started as a half circle (a stressed
+    start far from its equilibrium), a dead force at the free end: a
+    conservative problem whose energy is the strain energy less the dead
+    load's work."""
+    rod = Rod(geometry.arc(1.0 / np.pi, np.pi), Section.circle(E=1e7, nu=0.3, radius=0.01), 8,
+              natural="straight")
+    rod.clamp("start").add_force("end", force)
+    return rod
+
+
+def energy(problem, rod, r, R, force):
+    ev = problem.evaluate(r, R, 1.0, tangent=False)
+    return ev.internal.energy - float(np.dot(force, r[rod.node("end")]))
+
+
+def recorded_flow(monkeypatch, rod, opts, prescribed=None):
+    """Run ``linearized`` from the rod's start at load factor 1, recording
+    the state every step starts from (a refused step starts the next try
+    from the same state)."""
+    problem = Problem(rod)
+    flow = relax.GradientFlow(problem)
+    starts = []
+    plain = relax.safeguarded_update
+
+    def record(problem_, at, inc, *args, **kw):
+        starts.append((at.r.copy(), at.R.copy()))
+        return plain(problem_, at, inc, *args, **kw)
+    monkeypatch.setattr(relax, "safeguarded_update", record)
+    out = flow.linearized(rod.r0.copy(), rod.R0.copy(), 1.0, opts, prescribed=prescribed)
+    return problem, out, starts
+
+
+def test_every_step_lowers_the_true_energy(monkeypatch):
+    """From a half circle released under a dead end force the steps lower
+    the energy (strain energy less the load's work, computed here, not the
+    trapezoid estimate the steps are judged by) at every taken step, some
+    steps are refused on the way, and the end is an equilibrium to rtol."""
+    force = np.array([0.0, -0.5 * EI, 0.0])
+    rod = released_arc(force)
+    opts = make_options({})
+    problem, (r, R, lam, rep), starts = recorded_flow(monkeypatch, rod, opts)
+    assert rep.converged, rep.reason
+    E = np.array([energy(problem, rod, *s, force) for s in starts]
+                 + [energy(problem, rod, r, R, force)])
+    taken = np.diff(E)
+    assert np.all(taken <= 1e-12 * np.abs(E).max()), taken.max()
+    assert np.sum(taken < 0) == rep.flow_steps >= 5
+    assert len(starts) > rep.flow_steps          # refused steps were retried
+    # converged to rtol, or to the residual's round-off floor (the package's
+    # acceptance, Problem.at_floor: the bent start's internal forces are
+    # large)
+    ev = problem.evaluate(r, R, 1.0)
+    assert problem.residual_norm(ev) <= max(opts.rtol, rep.floor or 0.0) \
+        * problem.force_scale(ev)
+
+
+def test_the_end_is_newtons_equilibrium_with_quadratic_convergence(monkeypatch):
+    """Where plain Newton converges too (a moderate dead load on a straight
+    cantilever), the steps end in the same equilibrium (to 1e-10 of the
+    length), and the last residuals fall quadratically, with the viscosity driven
+    to zero by the good model and the falling residual."""
+    from skfem_rod.newton import newton
+    force = np.array([0.0, 2.0, 0.5])
+    rod = (Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 8)
+           .clamp("start").add_force("end", force))
+    opts = make_options({})
+    problem, (r, R, lam, rep), _ = recorded_flow(monkeypatch, rod, opts)
+    assert rep.converged, rep.reason
+    r_n, R_n, _, rep_n = newton(Problem(rod), rod.r0.copy(), rod.R0.copy(), 1.0, opts)
+    assert rep_n.converged
+    assert np.abs(r - r_n).max() < 1e-10
+    assert np.abs(R - R_n).max() < 1e-9
+    h = np.array(rep.history)
+    scale = problem.force_scale(rep.evaluation)
+    # the order of convergence over the last three residuals between 1e-1
+    # and 1e-8 of the force scale (below, round-off takes over): 2 for
+    # Newton's, 1 where a viscosity that stays would slow it
+    tail = h[(h < 1e-1 * scale) & (h > 1e-8 * scale)][-3:]
+    assert tail.size == 3, h
+    order = np.log(tail[2] / tail[1]) / np.log(tail[1] / tail[0])
+    assert order > 1.8, (order, h)
+
+
+def test_the_prescribed_increment_is_applied(monkeypatch):
+    """A prescribed end rotation (a quarter turn, as a load step with the
+    default ``max_rotation_step`` may carry) is carried by the first steps
+    and applied in full at convergence."""
+    rod = (Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 8)
+           .clamp("start").prescribe_rotation("end", [0.0, 0.0, 0.5 * np.pi]))
+    problem = Problem(rod)
+    flow = relax.GradientFlow(problem)
+    opts = make_options({})
+    presc = problem.prescribed(1.0)
+    r, R, lam, rep = flow.linearized(rod.r0.copy(), rod.R0.copy(), 1.0, opts, prescribed=presc)
+    assert rep.converged, rep.reason
+    # the end's rotation is the prescribed pi / 2 about z: the rod bent into a
+    # quarter circle of radius L / (pi / 2) (to the P3 mesh's error)
+    end = rod.node("end")
+    Q = R[end] @ rod.R0[end].T
+    assert np.abs(Q - [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).max() < 1e-12
+    rho = 1.0 / (0.5 * np.pi)
+    assert r[end] == pytest.approx([rho, rho, 0.0], abs=1e-6)
+
+
+@pytest.mark.parametrize("contact, how, expected", [
+    (True, "auto", ["linearized"]), (False, "auto", ["proximal"]),
+    (False, "linearized", ["linearized"]), (True, "proximal", ["proximal"]),
+    (True, "linearized", ["linearized", "proximal"])])
+def test_the_option_picks_the_steps(monkeypatch, contact, how, expected):
+    """``flow_steps``: "auto" takes the Levenberg-Marquardt steps with contact
+    on and proximal steps without; where the former find no descent the
+    latter take over from the flow's start."""
+    from skfem_rod.problem import Report
+    calls = []
+
+    def fake(name, ok):
+        def run(self, r, R, lam, opts, prescribed=None, descent=False):
+            calls.append(name)
+            return r, R, lam, Report(ok, reason="" if ok else "no descent (test)")
+        return run
+    # the linearized steps fail in the last case only
+    monkeypatch.setattr(relax.GradientFlow, "linearized",
+                        fake("linearized", expected == ["linearized"]))
+    monkeypatch.setattr(relax.GradientFlow, "proximal", fake("proximal", True))
+    rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+    rod.clamp("start")
+    if contact:
+        rod.enable_contact(radius=0.01)
+    flow = relax.GradientFlow(Problem(rod))
+    out = flow(rod.r0, rod.R0, 1.0, make_options({"flow_steps": how}))
+    assert calls == expected and out[3].converged
