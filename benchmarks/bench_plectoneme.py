@@ -96,9 +96,16 @@ def theory():
 
 
 def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped=400,
-        contact=None, **options):
+        contact=None, method="dynamics", **options):
     """Solve one case (``contact``: more contact options, ``options``: more
-    solver options); returns a dict of figures (and the result)."""
+    solver options); returns a dict of figures (and the result).
+    ``method``: ``"dynamics"`` (``dynamics=True``) or ``"relax"``
+    (``snap="relax"``, ``stability=True``: the gradient flow, by
+    Levenberg-Marquardt steps with contact on, pushed off saddles).  With
+    ``"relax"`` the figures per solve are those of the recorded steps
+    (:func:`steps_log`), and ``damped`` is 0."""
+    if method not in ("dynamics", "relax"):
+        raise ValueError(f"method must be 'dynamics' or 'relax', not {method!r}")
     rod = build(n_elements, gamma_T, turns, contact=contact)
     n_steps = int(np.ceil(turns * 4))
     recs = []
@@ -124,12 +131,13 @@ def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped
                   f"crossing={r['crossing']:2d} ({r['crossing_force']:6.2f})  "
                   f"damped={dyn.damped_steps if dyn else 0:4d}  {r['wall']:.1f} s", flush=True)
 
-    result = rod.solve(n_steps, dynamics=True, callback=callback,
-                       max_damped_steps=max_damped, time_limit=budget, **options)
+    how = dict(dynamics=True, max_damped_steps=max_damped) if method == "dynamics" \
+        else dict(snap="relax", stability=True)
+    result = rod.solve(n_steps, callback=callback, time_limit=budget, **how, **options)
     message = result.message
     stopped = "budget" if "the time limit ran out" in message else ""
     wall = time.perf_counter() - t0
-    d = result.dynamics
+    d = result.dynamics if method == "dynamics" else steps_log(result)
     newton = np.array(d.newton) if d.newton else np.zeros(1)
     acc = np.array(d.accepted, dtype=bool) if d.accepted else np.zeros(1, bool)
     true_pen = [r["true_penetration"] for r in recs if r["true_penetration"] is not None]
@@ -145,6 +153,22 @@ def run(n_elements, gamma_T, turns=TURNS, budget=300.0, verbose=True, max_damped
                 max_penetration_all=d.max_penetration,
                 max_uzawa_penetration=max(r["penetration"] for r in recs),
                 result=result)
+
+
+def steps_log(result):
+    """A :class:`~skfem_rod.dynamics.DynamicsLog` of a run without dynamics:
+    one accepted "static" solve per recorded step after step 0 (its Newton
+    iterations, the flow's linear solves included) with its true
+    penetration, no damped step."""
+    from skfem_rod.dynamics import DynamicsLog
+    log = DynamicsLog()
+    for st in result.steps[1:]:
+        log.kind.append("static")
+        log.newton.append(int(st.iterations))
+        log.accepted.append(True)
+        if st.contact is not None and st.contact.min_distance is not None:
+            log.penetration.append((2 * RADIUS - st.contact.min_distance) / RADIUS)
+    return log
 
 
 def by_kind(log):
@@ -271,6 +295,9 @@ def main(argv=None):
     p.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.3])
     p.add_argument("--turns", type=float, default=TURNS)
     p.add_argument("--budget", type=float, default=300.0, help="wall-time budget per run (s)")
+    p.add_argument("--method", choices=("dynamics", "relax"), default="dynamics",
+                   help="dynamics=True, or snap='relax' with stability=True (the gradient "
+                        "flow by Levenberg-Marquardt steps)")
     p.add_argument("--max-damped", type=int, default=400,
                    help="damped steps per damped phase before a run gives up")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
@@ -299,7 +326,7 @@ def main(argv=None):
         for g in a.gammas:
             print(f"{n} elements, gamma_T = {g:g}", flush=True)
             r = run(n, g, a.turns, a.budget, max_damped=a.max_damped, contact=contact,
-                    **options)
+                    method=a.method, **options)
             print(f"  -> {r['turns']:.3f} turns in {r['wall']:.1f} s: {r['message']}", flush=True)
             runs.append(r)
             # written after every run: a long run does not lose the others

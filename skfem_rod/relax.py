@@ -207,11 +207,13 @@ def polish(problem, W, c, r, R, lam, opts, prescribed=None, clearance=True):
 
 
 class GradientFlow:
-    """Proximal steps of the gradient flow on a :class:`~skfem_rod.problem.Problem`
-    (module doc).  It keeps the metric ``W`` and the step size that worked
-    last: the flows of one problem meet the same stiffness, so each flow
-    starts at twice the first step size the last one accepted (else at
-    ``SolverOptions.relax_dt``)."""
+    """The gradient flow on a :class:`~skfem_rod.problem.Problem` (module
+    doc): Levenberg-Marquardt steps or proximal steps (option
+    ``flow_steps``).  It keeps the metric ``W`` and what worked last: the
+    flows of one problem meet the same stiffness, so a proximal flow starts
+    at twice the first step size the last one accepted, and a
+    Levenberg-Marquardt run at the viscosity the last one ended with (else
+    both at ``SolverOptions.relax_dt``)."""
 
     def __init__(self, problem, deadline=None):
         self.problem = problem
@@ -289,7 +291,7 @@ class GradientFlow:
         jumps along the step, e.g. a contact pair switching, so that no
         step length descends by the estimate), or ``max_flow_steps``
         steps.  One linear solve per step, where a proximal step costs a
-        Newton solve: the knot's cycle took 0.23 of the time
+        Newton solve: the knot's cycle took a fifth of the time
         (docs/knot.md)."""
         problem, W = self.problem, self.W
         free, fixed = problem.free, problem.fixed

@@ -42,3 +42,21 @@ def test_runs_printed_side_by_side_are_plotted_from_their_logs(tmp_path, capsys)
             for q in out["records"]]
     assert got == want and len(got) > 1
     assert (tmp_path / "plectoneme.png").stat().st_size > 0
+
+
+def test_a_relax_run_reports_its_recorded_steps():
+    """``method="relax"`` (``snap="relax"``, ``stability=True``): no damped
+    step, one solve per recorded step after step 0, its Newton iterations
+    and true penetration those of the steps."""
+    out = bench.run(20, 0.0, turns=10.0, budget=2.0, verbose=False, method="relax")
+    res = out["result"]
+    assert getattr(res, "dynamics", None) is None and out["damped"] == 0
+    assert out["solves"] == len(res.steps) - 1 >= 1
+    assert out["newton_total"] == sum(st.iterations for st in res.steps[1:])
+    assert out["by_kind"]["static"]["accepted"] == out["solves"]
+
+
+def test_an_unknown_method_is_refused():
+    import pytest
+    with pytest.raises(ValueError, match="method must be"):
+        bench.run(20, 0.0, budget=1.0, verbose=False, method="flow")
