@@ -114,7 +114,7 @@ class SolverOptions:
         find no descent); ``"proximal"`` proximal problems solved by Newton;
         ``"auto"`` (default) the first with contact on, the second without.
         Measured (docs/theory.md): with contact the linearized steps took
-        the knot's cycle 4-5 times faster and the twisted rod's snaps 4
+        the knot's cycle 4-5 times faster and the twisted rod's snaps 2
         times; without contact the proximal ones took the localized
         writhing 8 times faster (its loop forms by large rotations, which
         the linear model follows only in short steps).
