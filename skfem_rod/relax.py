@@ -77,6 +77,7 @@ calls a :class:`GradientFlow` in place of Newton inside the same
 augmented-Lagrangian loop (:mod:`skfem_rod.augmented`) when a step fails.
 """
 from dataclasses import replace
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -220,12 +221,17 @@ class GradientFlow:
         #: the solve's :class:`~skfem_rod.options.Deadline` (a flow stops when it passed)
         self.deadline = deadline
         self.W = metric(problem.rod, problem.fixed)
-        #: ``W`` as a sparse diagonal in the dof basis (the Levenberg-Marquardt shift)
-        self.D = sp.diags(self.W).tocsc() if problem.T is None else \
-            (problem.T.T @ sp.diags(self.W) @ problem.T).tocsc()
         self.dt = None
         #: the viscosity the last Levenberg-Marquardt run ended with
         self.c = None
+
+    @cached_property
+    def D(self):
+        """``W`` as a sparse diagonal in the dof basis: the Levenberg-Marquardt
+        shift, built at the first flow that takes those steps."""
+        T = self.problem.T
+        W = sp.diags(self.W)
+        return (W if T is None else T.T @ W @ T).tocsc()
 
     def __call__(self, r, R, lam, opts, prescribed=None, descent=False):
         """The stable equilibrium at load factor ``lam`` (contact multipliers
@@ -293,7 +299,7 @@ class GradientFlow:
         steps.  One linear solve per step, where a proximal step costs a
         Newton solve: the knot's cycle took a fifth of the time
         (docs/knot.md)."""
-        problem, W = self.problem, self.W
+        problem = self.problem
         free, fixed = problem.free, problem.fixed
         safe = replace(opts, clearance_cap=True, position_correction=False)
         c = 1.0 / opts.relax_dt if self.c is None else self.c
@@ -324,7 +330,7 @@ class GradientFlow:
             A = K + c * self.D
             try:
                 solve = problem.factor(A)
-                dy = solve(-G - A @ remaining)
+                dy = solve(-G - A @ remaining if moving else -G)
             except RuntimeError as err:                  # singular factor
                 why = f"singular tangent ({err})"
                 break
@@ -344,7 +350,8 @@ class GradientFlow:
                 G1 = trial[2].residual
                 change = 0.5 * float(np.dot((G + G1)[free], d[free]))
                 model = float(np.dot(G[free], d[free])) + 0.5 * float(np.dot(d, K @ d))
-                ok = change < 0.0 or (problem.residual_norm(trial[2]) <= 0.5 * rn
+                rn_t = problem.residual_norm(trial[2])
+                ok = change < 0.0 or (rn_t <= 0.5 * rn
                                       and change <= 1e-12 * scale * np.linalg.norm(d))
             if ok:
                 r, R, ev = trial
@@ -353,8 +360,7 @@ class GradientFlow:
                 refused, nu = 0, 2.0
                 if alpha == 1.0:                         # else the safeguards set the length
                     rho = change / model if model < 0.0 else 1.0
-                    c *= min(max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
-                             problem.residual_norm(ev) / rn)
+                    c *= min(max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), rn_t / rn)
                 continue
             refused += 1
             if refused > MAX_REFUSALS:
