@@ -144,3 +144,72 @@ def test_the_option_picks_the_steps(monkeypatch, contact, how, expected):
     flow = relax.GradientFlow(Problem(rod))
     out = flow(rod.r0, rod.R0, 1.0, make_options({"flow_steps": how}))
     assert calls == expected and out[3].converged
+
+
+def stall_trace(n, fall, residual):
+    """Per-iteration cumulative energy falls and residual norms of a flow
+    that fell by ``fall(k)`` at iteration ``k`` with residual ``residual(k)``."""
+    drops = np.cumsum([-fall(k) for k in range(n)])
+    return list(drops), [residual(k) for k in range(n)]
+
+
+def test_a_flow_stuck_at_a_jump_of_the_residual_is_stalled():
+    """The trace measured in the plectoneme's step from 2.3125 turns: after
+    200 iterations that lowered the energy by 0.1 in all, every other trial
+    refused (no fall) and every other taken with a fall of 1e-19 at the
+    same residual 3.829e-3: stalled once a whole window has gone by so."""
+    n = 200 + relax.STALL_WINDOW + 1
+    drops, history = stall_trace(
+        n, lambda k: 5e-4 if k < 200 else (1e-19 if k % 2 else 0.0),
+        lambda k: 1.0 / (1 + k) if k < 200 else 3.829e-3)
+    assert not relax.stalled(drops[:-2], history[:-2])
+    assert relax.stalled(drops, history)
+
+
+@pytest.mark.parametrize("case", ["crawl", "residual falls", "short"])
+def test_a_flow_that_progresses_is_not_stalled(case):
+    """A flow crawling down a corrugated valley (the knot's and the
+    plectoneme's: the energy falling 1e-5 per step out of a fall of order
+    1, the residual hovering at 0.1-6), one whose energy no longer falls
+    visibly but whose residual reaches a new least (Newton's end), and one
+    shorter than the window are not stalled."""
+    rng = np.random.default_rng(7)
+    n = 3 * relax.STALL_WINDOW
+    if case == "crawl":
+        drops, history = stall_trace(n, lambda k: 1e-5 * (k % 3 != 0),
+                                     lambda k: 0.1 + 6 * rng.random())
+        drops = [d - 1.0 for d in drops]           # the fall before the crawl
+    elif case == "residual falls":
+        drops, history = stall_trace(n, lambda k: 1e-3 if k < 10 else 0.0,
+                                     lambda k: 10.0 ** (-k / 10))
+    else:
+        drops, history = stall_trace(relax.STALL_WINDOW, lambda k: 0.0, lambda k: 1.0)
+    assert not relax.stalled(drops, history)
+
+
+def test_a_stalled_flow_is_taken_on_from_its_own_state(monkeypatch):
+    """Where the Levenberg-Marquardt steps stall, the proximal steps start
+    from the flow's state (lower, its prescribed increment applied), with
+    no increment left; where they found no descent, from the start again
+    with the increment."""
+    from skfem_rod.problem import Report
+    rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+    rod.clamp("start").enable_contact(radius=0.01)
+    flow = relax.GradientFlow(Problem(rod))
+    moved = rod.r0 + 0.01
+    presc = np.ones(rod.r0.size)
+    calls = []
+
+    def proximal(self, r, R, lam, opts, prescribed=None, descent=False):
+        calls.append((r.copy(), prescribed))
+        return r, R, lam, Report(True)
+    monkeypatch.setattr(relax.GradientFlow, "proximal", proximal)
+    for stall in (True, False):
+        def linearized(self, r, R, lam, opts, prescribed=None, stall=stall):
+            self.stalled = stall
+            return moved, R, lam, Report(False, reason="test")
+        monkeypatch.setattr(relax.GradientFlow, "linearized", linearized)
+        flow(rod.r0, rod.R0, 1.0, make_options({}), prescribed=presc)
+    (r_stall, p_stall), (r_fail, p_fail) = calls
+    assert np.array_equal(r_stall, moved) and p_stall is None
+    assert np.array_equal(r_fail, rod.r0) and p_fail is presc
