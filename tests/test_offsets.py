@@ -97,3 +97,30 @@ def test_offsets_are_saved_and_carried_with_the_multipliers():
     saved.rekey_crossing(new, np.array([0.5, 0.0]))
     assert saved.crossing_offset.tolist() == [5e-3, 0.0]
     assert saved.nominal_penalty().offset.tolist() == saved.offset.tolist()
+
+
+@pytest.mark.parametrize("uzawa_converged", [True, False])
+def test_an_overlap_after_a_short_uzawa_loop_names_the_loop(uzawa_converged):
+    """An overlap between slave points fails the step.  Where the Uzawa
+    loop stopped short, the offsets were never raised (they are raised
+    only once the slave points hold the tolerance), so the message names
+    the loop and its figures and asks for more updates, not a finer
+    sampling (measured: the knot tied with 12 slave points per element
+    stopped at max_uzawa = 60, and the message asked to raise n_slave)."""
+    from skfem_rod import Rod, Section, geometry
+    from skfem_rod.problem import Problem, Report
+    rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+    rod.clamp("start").enable_contact(radius=0.01, max_uzawa=7)
+    problem = Problem(rod)
+    rep = Report(True, uzawa_converged=uzawa_converged, uzawa=7,
+                 uzawa_note="Uzawa stopped after 7 updates with penetration 1e-05",
+                 min_distance=2 * 0.01 - 3e-5, min_distance_at=(0.25, 0.75))
+    augmented.fail_overlap(problem, rep, 1e-3 * 0.01)
+    assert not rep.converged
+    assert "overlap by 0.003 eps between slave points (s = 0.25 and 0.75" in rep.reason
+    if uzawa_converged:
+        assert "raise n_slave" in rep.reason and "max_uzawa" not in rep.reason
+    else:
+        assert "Uzawa loop stopped short" in rep.reason
+        assert "Uzawa stopped after 7 updates with penetration 1e-05" in rep.reason
+        assert "raise max_uzawa (now 7)" in rep.reason and "n_slave" not in rep.reason
