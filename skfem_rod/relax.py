@@ -272,7 +272,8 @@ class GradientFlow:
         ``flow_steps``: Levenberg-Marquardt steps (:meth:`linearized`; with
         contact on, by default), and where those find no descent, proximal
         steps solved by Newton (:meth:`proximal`) from ``(r, R)`` again
-        (from the flow's own state, lower, where it stalled: :func:`stalled`); or
+        (from the flow's own state, lower, where it stalled:
+        :func:`stalled`); or
         proximal steps alone (without contact, by default).
         Same signature and return value as :func:`skfem_rod.newton.newton`;
         the report also has ``flow_steps`` (both kinds counted).
@@ -333,9 +334,9 @@ class GradientFlow:
         jumps along the step, e.g. a contact pair switching, so that no
         step length descends by the estimate), after :data:`STALL_WINDOW`
         iterations without progress (:func:`stalled`: the residual jumps at
-        the state itself), or ``max_flow_steps`` steps.  One linear solve per step, where a proximal step costs a
-        Newton solve: the knot's cycle took a fifth of the time
-        (docs/knot.md)."""
+        the state itself), or ``max_flow_steps`` steps.  One linear solve
+        per step, where a proximal step costs a Newton solve: the knot's
+        cycle took a fifth of the time (docs/knot.md)."""
         problem = self.problem
         free, fixed = problem.free, problem.fixed
         safe = replace(opts, clearance_cap=True, position_correction=False)
