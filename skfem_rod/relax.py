@@ -145,11 +145,12 @@ STALL_WINDOW = 50
 STALL_SHARE = 1e-12
 
 
-def stalled(drops, history):
+def stalled(drops, least):
     """Whether a Levenberg-Marquardt flow made no progress in its last
     :data:`STALL_WINDOW` iterations: ``drops`` the energy's fall so far
     (the sum of the taken steps' estimated changes, negative) and
-    ``history`` the residual norm, both per iteration.
+    ``least`` the least residual norm so far, both per iteration (running
+    values: the test costs the same at any iteration).
 
     Where the residual jumps at the state itself, no step length descends
     and none fails either: measured in the plectoneme's step from 2.3125
@@ -162,8 +163,7 @@ def stalled(drops, history):
     if len(drops) <= STALL_WINDOW:
         return False
     fall = drops[-STALL_WINDOW - 1] - drops[-1]
-    return (fall <= STALL_SHARE * abs(drops[-1])
-            and min(history[-STALL_WINDOW:]) >= min(history[:-STALL_WINDOW]))
+    return fall <= STALL_SHARE * abs(drops[-1]) and least[-1] >= least[-STALL_WINDOW - 1]
 
 
 #: the viscosity a refused Levenberg-Marquardt step raises from is at least
@@ -345,7 +345,8 @@ class GradientFlow:
         remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
         ev = problem.evaluate(r, R, lam)
         history, its, steps, nu, refused = [], 0, 0, 2.0, 0
-        drop, drops = 0.0, []        # the energy's fall so far, per iteration
+        # the energy's fall and the least residual norm so far, per iteration
+        drop, drops, least = 0.0, [], []
         self.stalled = False
         why = f"{opts.max_flow_steps} steps"
         while steps < opts.max_flow_steps:
@@ -367,7 +368,8 @@ class GradientFlow:
                                              evaluation=ev, flow_steps=steps,
                                              floor=None if floor is None else floor / scale)
             drops.append(drop)
-            if not moving and stalled(drops, history):
+            least.append(min(rn, least[-1]) if least else rn)
+            if not moving and stalled(drops, least):
                 self.stalled = True
                 why = (f"no progress in {STALL_WINDOW} steps (the energy's fall below "
                        f"{STALL_SHARE:g} of the flow's, the residual not lower)")
