@@ -164,7 +164,8 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
             return r, R, lam, rep
         previous, passed_with = (r, R, lam), problem.multipliers.copy()
         ce = rep.evaluation.contact
-        pen, opened, d, dc = violations(problem, ce)
+        pen, opened = ce.violations()
+        d, dc = ce.gap, ce.crossing_gap
         done = pen <= c.tolerance * c.radius and opened <= c.tolerance * c.radius
         m = problem.multipliers
         crossing_friction = None               # the crossing pairs' friction update
@@ -229,25 +230,6 @@ def carry_penalty(problem):
         return False
     problem.multipliers.penalty_scale = start.copy()
     return bool(start.max(initial=1.0) > 1.0)
-
-
-def violations(problem, ce):
-    """The contact tolerances' measures at the contact evaluation ``ce``:
-    the largest penetration and the largest open gap under force (a
-    multiplier left over from a higher load pushes apart), over the slave
-    pairs and the crossing pairs.  Returns ``(penetration, opened, d, dc)``
-    with the gaps ``d`` of the slave pairs and ``dc`` of the crossing pairs
-    (None without)."""
-    c = problem.contact
-    d = ce.gap
-    pen = float(d.max(initial=0.0))
-    opened = float(np.max(-d[ce.fN > 0], initial=0.0))
-    dc = None
-    if ce.crossing is not None:                  # point pairs of crossing strands
-        dc = ce.crossing_gap
-        pen = max(pen, float(dc.max(initial=0.0)))
-        opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
-    return pen, opened, d, dc
 
 
 def needs_offsets(problem, r, rep):

@@ -242,7 +242,9 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
     if cf is not None and jacobian:
         misfit = max(misfit, coulomb_misfit(cf, problem.crossing_friction_params(),
                                             c.friction_tolerance))
-    d = ce.gap
+    # the contact tolerances' measures, as the Uzawa loop reads them
+    pen, opened = ce.violations()
+    d, dc = ce.gap, ce.crossing_gap
     mu = c.penalty / m.penalty_scale[pairs.slave]
     act = (d + mu * lam[pairs.slave]) > 0
     active = np.zeros(C.size, bool)
@@ -250,16 +252,11 @@ def contact_blocks(problem, ev, jacobian=True, weight=1.0, crossing=False):
     fslaves = fr.slave if laws else np.zeros(0, int)
     for k in range(len(laws)):
         active[(ns + 3 * ns * k + 3 * fslaves[:, None] + np.arange(3)).ravel()] = True
-    pen = float(d.max(initial=0.0))
-    opened = float(np.max(-d[ce.fN > 0], initial=0.0))
     nf = ns + 3 * ns * len(laws)                 # where the crossing block starts
     if cp is not None:
         mu_c = problem.crossing_compliance()
-        dc = ce.crossing_gap
         act_c = (dc + mu_c * lam_c) > 0
         active[nf + np.flatnonzero(act_c)] = True
-        pen = max(pen, float(dc.max(initial=0.0)))
-        opened = max(opened, float(np.max(-dc[ce.crossing_fN > 0], initial=0.0)))
     G = ev.residual
     # C in units of G's tolerance: w tol / mu per point (the gap tolerance
     # of the Uzawa loop as a force) against rtol times the force scale

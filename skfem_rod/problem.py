@@ -68,6 +68,25 @@ class ContactEvaluation:
     #: ``slave`` = the pair's index in ``crossing``)
     crossing_friction: object = None
 
+    def violations(self):
+        """The contact tolerances' measures, ``(penetration, opened)``: the
+        largest penetration and the largest open gap under force (a
+        multiplier left over from a higher load pushes apart), over the
+        slave pairs and the crossing pairs.  A crossing pair's penetration
+        counts with its weight ``w``: below full weight the Uzawa update's
+        fixed point ``lambda = w [lambda + d / mu]_+`` leaves the pair a gap,
+        the share ``1 - w`` of the contact being the Gauss pairs'
+        (docs/crossing-contact.md, 4); the true distance is judged after
+        the loop (:func:`skfem_rod.augmented.finish`)."""
+        d = self.gap
+        pen = float(d.max(initial=0.0))
+        opened = float(np.max(-d[self.fN > 0], initial=0.0))
+        if self.crossing is not None:                # point pairs of crossing strands
+            dc = self.crossing_gap
+            pen = max(pen, float((self.crossing.weight * dc).max(initial=0.0)))
+            opened = max(opened, float(np.max(-dc[self.crossing_fN > 0], initial=0.0)))
+        return pen, opened
+
 
 @dataclass
 class Evaluation:

@@ -559,6 +559,27 @@ def test_sampled_angle_bad_input(kwargs, name):
         sampled_angle(**args)
 
 
+def test_the_sampling_tolerance_sets_beta_h_apart_from_the_uzawa_tolerance():
+    """``crossing_sampling`` (default: the Uzawa tolerance) is the
+    tolerance in ``beta_h``: the Gauss points' sag at a minimum of angle
+    ``beta`` is ``(t sin beta)^2 / (4 eps)``, so a sampling tolerance 100
+    times the Uzawa one raises ``sin beta_h`` tenfold.  In the knot's braid
+    (60 elements, ``h`` = 3.24 eps) the wrapped strands' 1.6 degrees then lie
+    below ``beta_h`` (2.9 degrees; they stay with the Gauss points) where
+    the Uzawa tolerance 1e-5 alone put them above it (0.29 degrees)."""
+    from skfem_rod.contact import ContactOptions
+    eps, h = 0.02, 3.24 * 0.02
+    base = dict(radius=eps, penalty=1e-9, exclusion=np.pi * eps, tolerance=1e-5)
+    plain, wide = ContactOptions(**base), ContactOptions(**base, crossing_sampling=1e-3)
+    assert plain.crossing_sampling == plain.tolerance == 1e-5
+    a0, a1 = plain.crossing_threshold().angle(h, eps), wide.crossing_threshold().angle(h, eps)
+    assert np.sin(a1) == pytest.approx(10.0 * np.sin(a0), rel=1e-12)
+    assert np.degrees(a0) < 1.6 < np.degrees(a1) < 15.0
+    # the cap still caps
+    capped = ContactOptions(**base, crossing_sampling=1.0, crossing_angle=np.radians(5.0))
+    assert capped.crossing_threshold().angle(h, eps) == pytest.approx(np.radians(5.0))
+
+
 def _over_a_kink(alpha=0.05, d=0.19, dx=0.0):
     """Strand A: two straight elements meeting at the origin with a kink of
     ``alpha`` (element 0 along -x, element 1 turned by ``alpha``); strand B

@@ -29,7 +29,7 @@ def _field(default, kind, doc, **kw):
 OVERLAP_FAIL = 0.1
 
 #: options derived from others when not given (None): name -> how
-_DERIVED = ("margin", "mu_T", "mu_R", "crossing_penalty")
+_DERIVED = ("margin", "mu_T", "mu_R", "crossing_penalty", "crossing_sampling")
 
 
 @dataclass
@@ -114,6 +114,12 @@ class ContactOptions:
         the angle below which the Gauss slave points alone hold the
         minimum (:func:`.crossing.sampled_angle`), measured at the sampling
         scale; flatter minima fade out (docs/crossing-contact.md).
+    crossing_sampling : the tolerance (times eps) in ``beta_h``: a minimum
+        the Gauss slave points sample to ``SAMPLING_SHARE`` of it stays with
+        them (default: ``tolerance``).  Above ``tolerance`` the slave
+        points' sag at such minima is held by the gap offsets
+        (:func:`skfem_rod.augmented.adjust_offsets`), and the true distance
+        is still checked against ``tolerance``.
     """
     radius: float = _field(MISSING, "number", "contact radius eps (default: section radius)",
                            lo=0.0)
@@ -160,6 +166,10 @@ class ContactOptions:
                                    "crossing pair of full weight (rad, below pi/2; the "
                                    "Gauss-sampling bound beta_h lowers it)", lo=0.0,
                                    hi=float(np.pi / 2))
+    crossing_sampling: float = _field(None, "number", "the sampling tolerance (times eps) "
+                                                      "that sets beta_h: minima the Gauss "
+                                                      "slave points sample to it stay with "
+                                                      "them (default: tolerance)", lo=0.0)
 
     @property
     def friction(self):
@@ -174,7 +184,8 @@ class ContactOptions:
                 f.metadata["spec"].check(f"contact {f.name}", v)
         derived = dict(margin=self.radius, mu_T=self.penalty,
                        mu_R=self.penalty / self.radius ** 2,
-                       crossing_penalty=self.penalty / self.radius)
+                       crossing_penalty=self.penalty / self.radius,
+                       crossing_sampling=self.tolerance)
         for f in fields(self):
             if f.name in _DERIVED and getattr(self, f.name) is None:
                 setattr(self, f.name, derived[f.name])
@@ -207,4 +218,4 @@ class ContactOptions:
         """The :class:`.crossing.PairThreshold` of these options: which
         minima of the strand distance get a crossing pair."""
         from .crossing import PairThreshold
-        return PairThreshold(self.crossing_angle, self.n_slave, self.tolerance)
+        return PairThreshold(self.crossing_angle, self.n_slave, self.crossing_sampling)
