@@ -130,16 +130,6 @@ def build(gamma_T=0.0, pull=0.2, n_elements=60, eps=EPS, clearance=6.0, tail=0.5
     # at 1e-5 eps the forces are those of closed gaps to 4 digits
     # (docs/knot.md, "the contact tolerance")
     contact.setdefault("tolerance", 1e-5)
-    # the braid's crossings get point pairs at their closest points, on the
-    # C1 contact curve (no node kinks for a minimum to hop over); the
-    # wrapped strands (about 1.6 degrees) stay with the slave points, which
-    # sample them to a quarter of 1e-3 eps, the gap offsets holding the
-    # true distance to the tolerance.  Frictionless, the cycle's up and
-    # down forces then agree to 8.7e-4 of the force, against 3.2 % with the
-    # slave points alone (docs/knot.md, "Crossing pairs")
-    contact.setdefault("crossing", True)
-    contact.setdefault("curve", "smooth")
-    contact.setdefault("crossing_sampling", 1e-3)
     rod.enable_contact(radius=eps, gamma_T=gamma_T, **contact)
     return rod
 
