@@ -188,6 +188,56 @@ def test_a_flow_that_progresses_is_not_stalled(case):
     assert not relax.stalled(drops, least)
 
 
+def test_a_frictional_flow_sliding_at_its_least_residual_is_stalled():
+    """The trace measured in the knot's frictional cycle (gamma_T = 0.2,
+    crossing pairs on the smooth curve, tied with them): 250 iterations
+    lowering the residual to 2.227e-5 and the estimate by 3.3e-6, then
+    7e-11 per iteration at residuals above that least (a sliding mode:
+    the slipping points' fixed-size forces do work without end).  The
+    energy rule never ends it; with friction it has stalled once
+    FRICTION_STALL_WINDOW iterations found no lower residual, and not
+    before.  A frictional flow that reaches a new least residual now and
+    then (every 400 iterations) is not stalled."""
+    rng = np.random.default_rng(3)
+    w = relax.FRICTION_STALL_WINDOW
+    n = 250 + w + 1
+    drops, least = stall_trace(
+        n, lambda k: 3.3e-6 / 250 if k < 250 else 7e-11,
+        lambda k: 2.227e-5 * 10.0 ** ((249 - k) / 50) if k < 250
+        else 2.227e-5 * (1.01 + rng.random()))
+    assert not relax.stalled(drops, least)                    # the energy rule
+    assert not relax.stalled(drops[:-2], least[:-2], friction=True)
+    assert relax.stalled(drops, least, friction=True)
+    drops, least = stall_trace(4 * w, lambda k: 1e-6,
+                               lambda k: 1.0 / (1 + k // 400) + rng.random() * 1e-3)
+    assert not relax.stalled(drops, least, friction=True)
+
+
+def test_a_frictional_flow_that_slides_fails_without_proximal_steps(monkeypatch):
+    """With friction a stalled flow is a sliding mode at the held friction
+    multipliers, along which the proximal steps crawl on as well (measured
+    in the knot, above): the flow fails at once, so that the step is cut.
+    Routing only (monkeypatched flows)."""
+    from skfem_rod.problem import Report
+    rod = Rod(geometry.straight(1.0), Section.circle(E=1e7, nu=0.3, radius=0.01), 4)
+    rod.clamp("start").enable_contact(radius=0.01, gamma_T=0.2)
+    flow = relax.GradientFlow(Problem(rod))
+    calls = []
+
+    def proximal(self, r, R, lam, opts, prescribed=None, descent=False):
+        calls.append("proximal")
+        return r, R, lam, Report(True)
+
+    def linearized(self, r, R, lam, opts, prescribed=None):
+        self.stalled = True
+        return r + 0.01, R, lam, Report(False, reason="stalled (test)")
+    monkeypatch.setattr(relax.GradientFlow, "proximal", proximal)
+    monkeypatch.setattr(relax.GradientFlow, "linearized", linearized)
+    out = flow(rod.r0, rod.R0, 1.0, make_options({}))
+    assert not out[3].converged and calls == []
+    assert np.array_equal(out[0], rod.r0)                   # the start, as a failed solve
+
+
 def test_a_stalled_flow_is_taken_on_from_its_own_state(monkeypatch):
     """Where the Levenberg-Marquardt steps stall, the proximal steps start
     from the flow's state (lower, its prescribed increment applied), with
