@@ -91,6 +91,14 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
     if c is None:
         return solve_pass(None)
     saved = problem.multipliers.copy()
+    if strict and c.offsets == "state":
+        # the gap offsets of an equilibrium to record are the state's: they
+        # start from 0 at every step and are raised where its strands dip
+        # (a carried offset is lowered only where the strands stand open by
+        # more than the tolerance, so it remembers the path)
+        m = problem.multipliers
+        m.offset = np.zeros_like(m.offset)
+        m.crossing_offset = np.zeros_like(m.crossing_offset)
     carried = carry_penalty(problem)
     total, uzawa = 0, 0
     last = np.full(problem.multipliers.normal.size, np.inf)   # last violation in contact
