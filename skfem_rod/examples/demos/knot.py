@@ -122,14 +122,22 @@ def build(gamma_T=0.0, pull=0.2, n_elements=60, eps=EPS, clearance=6.0, tail=0.5
     # all points of the sliding knot slip, so the friction multipliers follow
     # every change of the normal ones: Uzawa may need more than 30 updates
     contact.setdefault("max_uzawa", 60)
-    # the pulling force is the tails' tension, EA (stretch) / length: a
-    # penetration in the braid lengthens the tails and moves it by about
-    # EA / L per unit length (2600 here).  At the default tolerance (1e-3
-    # eps) the tied knot's force was 2.168 against 2.254 with the gaps
-    # closed, and the same end distance gave forces 3 % apart up and down;
-    # at 1e-5 eps the forces are those of closed gaps to 4 digits
-    # (docs/knot.md, "the contact tolerance")
-    contact.setdefault("tolerance", 1e-5)
+    # the braid's crossings get point pairs at their closest points, on the
+    # C1 contact curve (no node kinks for a minimum to hop over); the
+    # wrapped strands (about 1.6 degrees) stay with the slave points, which
+    # sample them to a quarter of 1e-3 eps, the gap offsets holding the
+    # true distance to the tolerance (docs/crossing-contact.md, "The
+    # sampling tolerance").  The pulling force is the tails' tension, EA
+    # (stretch) / length: a penetration the slave points miss in the braid
+    # lengthens the tails and moved it by per cents at the tolerance 1e-3
+    # eps with the slave points alone; with the braid's crossings held at
+    # their closest points the forces at 1e-4 eps are those at 1e-5 eps to
+    # 0.1 %, and the frictionless cycle's up and down forces agree to
+    # 3.7e-4 of the force in 40 s (docs/knot.md, "Crossing pairs")
+    contact.setdefault("crossing", True)
+    contact.setdefault("curve", "smooth")
+    contact.setdefault("crossing_sampling", 1e-3)
+    contact.setdefault("tolerance", 1e-4)
     rod.enable_contact(radius=eps, gamma_T=gamma_T, **contact)
     return rod
 
