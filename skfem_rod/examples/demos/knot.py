@@ -466,11 +466,13 @@ def _render(sol, path, window_size=(900, 600)):
     res = sol["result"]
     k = int(np.argmax([st.load_factor for st in res.steps]))
     f = res.sample(8, k)
+    cross = res.crossing_points(k)
     render_contact_states(path, f["r"], f["R"], sol["eps"], res.contact_points(k),
-                          res.contact_states(k),
+                          res.contact_states(k), crossing_points=cross,
                           window_size=window_size,
                           title=f"tightest knot, γ_T = {sol['gamma_T']:g}: "
-                                f"{len(res.contact_points(k))} contact points")
+                                f"{len(res.contact_points(k))} slave points, "
+                                f"{len(cross)} crossing pairs in contact")
     return path
 
 
@@ -478,16 +480,18 @@ def _animate(sol, path, window_size):
     """GIF of the tighten-and-loosen cycle, contact markers by stick/slip."""
     from skfem_rod.render import render_animation
     res = sol["result"]
-    configs, points, states, titles = [], [], [], []
+    configs, points, states, cross, titles = [], [], [], [], []
     for k, w in enumerate(sol["rows"]):
         f = res.sample(6, k)
         configs.append((f["r"], f["R"]))
         points.append(res.contact_points(k))
         states.append(res.contact_states(k))
+        cross.append(res.crossing_points(k))
         titles.append(f"γ_T = {sol['gamma_T']:g}: end distance d = {w['distance']:.3f}, "
                       f"force F = {w['force']:.2f}")
     return render_animation(path, configs, sol["eps"], window_size=window_size, titles=titles,
-                            contact_points=points, contact_states=states, fps=6)
+                            contact_points=points, contact_states=states,
+                            crossing_points=cross, fps=6)
 
 
 if __name__ == "__main__":
