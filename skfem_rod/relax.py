@@ -291,7 +291,8 @@ class GradientFlow:
         contact on, by default), and where those find no descent, proximal
         steps solved by Newton (:meth:`proximal`) from ``(r, R)`` again
         (from the flow's own state, lower, where it stalled:
-        :func:`stalled`); or
+        :func:`stalled`; with friction on, a stalled flow fails instead, a
+        sliding mode at the held multipliers, and the step is cut); or
         proximal steps alone (without contact, by default).
         Same signature and return value as :func:`skfem_rod.newton.newton`;
         the report also has ``flow_steps`` (both kinds counted).

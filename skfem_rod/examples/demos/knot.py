@@ -256,7 +256,8 @@ def solve(gamma_T=0.0, pull=0.2, n_elements=60, n_steps=10, eps=EPS, clearance=6
         if verbose:
             w = rows[-1]
             print(f"  k={k:3d} lam={w['load_factor']:.3f} d={w['distance']:.4f} "
-                  f"F={w['force']:9.4f} N={w['normal_force']:7.3f} n_c={w['n_contact']:3d}+{w['n_crossing']} "
+                  f"F={w['force']:9.4f} N={w['normal_force']:7.3f} "
+                  f"n_c={w['n_contact']:3d}+{w['n_crossing']} "
                   f"slip={w['slip']:3d} pen/h={w['penetration'] / eps:.1e} "
                   f"dmin/h={w['min_strand_distance'] / eps:.3f} Lk={w['link']:+.3f} "
                   f"newton={w['newton']} uzawa={w['uzawa']}", flush=True)
