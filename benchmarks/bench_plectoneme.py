@@ -78,14 +78,8 @@ def build(n_elements, gamma_T=0.0, turns=TURNS, imperfection=1e-2, contact=None)
     s = rod.mesh.s_nodes
     rod.add_force(float(s[np.argmin(np.abs(s - L / 2))]), [0.0, imperfection * TENSION, 0.0],
                   constant=True)
-    # offsets="carried": measured (benchmarks/RESULTS_plectoneme.md, the
-    # eighteenth session), the offsets raised from 0 at every step took the
-    # frictionless run to 2.0 turns sooner (25 s against 46 s) but only to
-    # 2.016 in 300 s (2.344 carried), the frictional one to 1.81 in 137 s
-    # (1.938 at 52 s carried); the run goes up only, so the path memory of
-    # carried offsets is not what it measures
     rod.enable_contact(**{"radius": RADIUS, "gamma_T": float(gamma_T), "crossing": True,
-                          "offsets": "carried", **(contact or {})})
+                          **(contact or {})})
     return rod
 
 

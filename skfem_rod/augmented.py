@@ -95,7 +95,8 @@ def augmented_lagrangian(problem, solve_pass, rescue=None, strict=True):
         # the gap offsets of an equilibrium to record are the state's: they
         # start from 0 at every step and are raised where its strands dip
         # (a carried offset is lowered only where the strands stand open by
-        # more than the tolerance, so it remembers the path)
+        # more than the tolerance, so it remembers the path; contact option
+        # offsets)
         m = problem.multipliers
         m.offset = np.zeros_like(m.offset)
         m.crossing_offset = np.zeros_like(m.crossing_offset)

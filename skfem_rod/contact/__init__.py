@@ -115,14 +115,15 @@ class ContactOptions:
         minimum (:func:`.crossing.sampled_angle`), measured at the sampling
         scale; flatter minima fade out (docs/crossing-contact.md).
     offsets : the gap offsets (:func:`skfem_rod.augmented.adjust_offsets`)
-        a recorded step starts from: ``"state"`` (default) from 0, raised
-        where the state's strands dip between the points that carry the
-        contact, so they are the state's and a frictionless path comes back
-        through the same states; ``"carried"`` from the last step's, lowered
-        only where the strands stand open by more than the tolerance, so
-        they remember the path (up to 0.1 of the tolerance in positions in
-        the squeezed loop, 3.2 % of the force in the knot's cycle), in
-        fewer offset rounds (docs/crossing-contact.md, "Gap offsets").
+        a recorded step starts from: ``"carried"`` (default) the last
+        step's, lowered only where the strands stand open by more than the
+        tolerance, so they remember the path (0.1 of the tolerance in
+        positions in the squeezed loop, 3.2 % of the force in the knot's
+        cycle); ``"state"`` from 0, raised where the state's strands dip
+        between the points that carry the contact, so they are the
+        state's and a frictionless path comes back through the same states,
+        at the price of the offset rounds of every step
+        (docs/crossing-contact.md, "Gap offsets").
     crossing_sampling : the tolerance (times eps) in ``beta_h``: a minimum
         the Gauss slave points sample to ``SAMPLING_SHARE`` of it stays with
         them (default: ``tolerance``).  Above ``tolerance`` the slave
@@ -175,7 +176,7 @@ class ContactOptions:
                                    "crossing pair of full weight (rad, below pi/2; the "
                                    "Gauss-sampling bound beta_h lowers it)", lo=0.0,
                                    hi=float(np.pi / 2))
-    offsets: str = _field("state", "choice", "the gap offsets a step starts from: 0 (raised "
+    offsets: str = _field("carried", "choice", "the gap offsets a step starts from: 0 (raised "
                                              "to the state's) or the last step's",
                           choices=("state", "carried"))
     crossing_sampling: float = _field(None, "number", "the sampling tolerance (times eps) "

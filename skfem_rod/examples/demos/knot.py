@@ -138,6 +138,10 @@ def build(gamma_T=0.0, pull=0.2, n_elements=60, eps=EPS, clearance=6.0, tail=0.5
     contact.setdefault("curve", "smooth")
     contact.setdefault("crossing_sampling", 1e-3)
     contact.setdefault("tolerance", 1e-4)
+    # the gap offsets raised from 0 at every step: carried, they remembered
+    # the path as the knot slid through the material (up/down forces 8.7e-4
+    # of the force apart at 1e-5 eps, 2.3e-5 from 0; docs/knot.md)
+    contact.setdefault("offsets", "state")
     rod.enable_contact(radius=eps, gamma_T=gamma_T, **contact)
     return rod
 
