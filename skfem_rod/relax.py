@@ -355,7 +355,9 @@ class GradientFlow:
         jumps along the step, e.g. a contact pair switching, so that no
         step length descends by the estimate), after :data:`STALL_WINDOW`
         iterations without progress (:func:`stalled`: the residual jumps at
-        the state itself), or ``max_flow_steps`` steps.  One linear solve
+        the state itself; with friction on, :data:`FRICTION_STALL_WINDOW`
+        iterations without a lower residual: a sliding mode), or
+        ``max_flow_steps`` steps.  One linear solve
         per step, where a proximal step costs a Newton solve: the knot's
         cycle took a fifth of the time (docs/knot.md)."""
         problem = self.problem

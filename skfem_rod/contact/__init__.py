@@ -176,8 +176,8 @@ class ContactOptions:
                                    "crossing pair of full weight (rad, below pi/2; the "
                                    "Gauss-sampling bound beta_h lowers it)", lo=0.0,
                                    hi=float(np.pi / 2))
-    offsets: str = _field("carried", "choice", "the gap offsets a step starts from: 0 (raised "
-                                             "to the state's) or the last step's",
+    offsets: str = _field("carried", "choice", "the gap offsets a step starts from: the "
+                                               "last step's or 0 (raised to the state's)",
                           choices=("state", "carried"))
     crossing_sampling: float = _field(None, "number", "the sampling tolerance (times eps) "
                                                       "that sets beta_h: minima the Gauss "
