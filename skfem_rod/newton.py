@@ -35,6 +35,9 @@ from .kinematics import ElementRotationError
 # (the generalized Newton of nonsmooth.py uses them too); re-exported here
 from .problem import CORRECT_ABOVE, Report, clearance_ok, position_correction  # noqa: F401
 from .problem import Increment, State, settled, spin_cap, start, update_size
+# the least iterate at its round-off floor: problem.py (the generalized
+# Newton of nonsmooth.py accepts it too); re-exported here
+from .problem import Iterate, at_floor  # noqa: F401
 from .problem import failed as _fail
 
 
@@ -233,41 +236,3 @@ def newton(problem, r, R, lam, opts, prescribed=None, border=None):
         remaining[np.abs(remaining) < 1e-300] = 0.0
     return give_up(opts.max_iterations, f"no convergence in {opts.max_iterations} "
                                         f"iterations (residual {history[-1]:.3e})")
-
-
-class Iterate(NamedTuple):
-    """A Newton iterate kept for :func:`at_floor`: its residual norm, state
-    and evaluation."""
-    rn: float
-    r: np.ndarray
-    R: np.ndarray
-    lam: float
-    ev: object
-
-
-def at_floor(problem, best, history):
-    """The :class:`Iterate` ``best`` as the converged state of a Newton
-    solve that cannot go on (its residual jumped up from there, no update
-    was admissible, or the iterations ran out) when its residual is at its
-    round-off floor (:meth:`~skfem_rod.problem.Problem.at_floor`); else
-    None.
-
-    A residual at its floor cannot be told from zero in double precision,
-    and the updates Newton computes from it are round-off amplified by the
-    inverse of the softest stiffness: along a very soft mode (the loop of
-    a localizing helix sliding along a long rod, lowest eigenvalue 1e-13
-    of the stiffest) the residual went 0.07 -> 9e-5 -> 1e-7 -> 0.08 in a
-    3-cycle, the floor there 3e-7 (the force scale 2).  A solve that
-    converges to ``rtol`` never gets here, so this costs nothing where
-    Newton works."""
-    if best is None:
-        return None
-    # the floor's evaluation, at best's state rounded, is also the last one:
-    # the problem's search memory (kept master elements, crossing keys) is
-    # best's again, not that of the iterate the residual jumped at
-    floor = problem.at_floor(best.r, best.R, best.lam, best.ev, best.rn)
-    if floor is None:
-        return None
-    return best.r, best.R, best.lam, Report(True, iterations=len(history) - 1,
-                                            history=history, evaluation=best.ev,
-                                            floor=floor / problem.force_scale(best.ev))

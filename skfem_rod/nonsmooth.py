@@ -63,7 +63,8 @@ import scipy.sparse.linalg as spla
 
 from .contact.friction_assembly import LAWS, coulomb_misfit, multiplier_updates
 from .kinematics import ElementRotationError
-from .problem import CORRECT_ABOVE, Increment, Report, State, clearance_ok
+from .problem import CORRECT_ABOVE, Increment, Iterate, Report, State, at_floor
+from .problem import clearance_ok
 from .problem import position_correction, settled, spin_cap, start, update_size
 from .problem import failed as _fail
 
@@ -515,6 +516,13 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
     remaining, ev, why = start(problem, r, R, lam, prescribed)
     if ev is None:
         return _fail(r, R, lam, history, 0, why)
+    # the polish's iterate of least |G_free| (the multipliers held there, so
+    # they are its own): accepted at its round-off floor when the solve
+    # cannot go on, as plain Newton's (problem.at_floor)
+    best = None
+
+    def give_up(it, reason):
+        return at_floor(problem, best, history) or _fail(r, R, lam, history, it, reason, ev)
     for it in range(opts.max_iterations + 1):
         scale = problem.force_scale(ev)
         if not (np.isfinite(scale) and np.all(np.isfinite(ev.residual))):
@@ -544,6 +552,8 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
                             and rn <= POLISH_BELOW * scale)
         if polish and polished_from is None:
             polished_from, merits = it, [rn]
+        if polish and not np.any(remaining) and (best is None or rn < best.rn):
+            best = Iterate(rn, r, R, lam, ev)
         try:
             dy, dl = solve_step(problem, ev, cs, remaining, polish)
         except RuntimeError as err:
@@ -567,9 +577,8 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
             polish = True
             continue
         if accepted is None:
-            return _fail(r, R, lam, history, it + 1,
-                         f"no admissible update after {opts.max_backtracks} halvings: {why}",
-                         ev)
+            return give_up(it + 1,
+                           f"no admissible update after {opts.max_backtracks} halvings: {why}")
         r, R, ev, x = accepted
         set_unknowns(problem, x, pairs)
         if ev.tangent is None:
@@ -588,9 +597,8 @@ def _contact_newton(problem, r, R, lam, opts, prescribed=None):
                           float(gaps.max(initial=0.0)) / problem.rod.length)
         remaining = remaining * (1.0 - alpha)
         remaining[np.abs(remaining) < 1e-300] = 0.0
-    return _fail(r, R, lam, history, opts.max_iterations,
-                 f"no convergence in {opts.max_iterations} iterations "
-                 f"(merit {history[-1]:.3e})", ev)
+    return give_up(opts.max_iterations, f"no convergence in {opts.max_iterations} iterations "
+                                        f"(merit {history[-1]:.3e})")
 
 
 def line_search(problem, at, inc, merit, opts, pairs=None):

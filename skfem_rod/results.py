@@ -26,7 +26,7 @@ class Step:
     #: residual relative to the force scale (above rtol)
     relaxed_residual: float = None
     #: the step's residual was accepted at its round-off floor, above rtol
-    #: times the force scale (:func:`skfem_rod.newton.at_floor`): that
+    #: times the force scale (:func:`skfem_rod.problem.at_floor`): that
     #: floor relative to the force scale
     floor: float = None
 

@@ -319,3 +319,33 @@ def test_a_failed_solve_leaves_the_multipliers_as_it_found_them(mode):
         *_, rep = nonsmooth._contact_newton(p, r, R, 0.0, opts)
     assert not rep.converged
     assert not np.array_equal(p.multipliers.normal, before.normal)
+
+
+def test_the_generalized_newton_accepts_its_least_iterate_at_the_round_off_floor(monkeypatch):
+    """Held to an ``rtol`` no residual reaches (1e-30) and an update
+    tolerance no update meets, every generalized Newton solve of the
+    rotational-friction scene ends at its round-off floor.  It returns its
+    least polished iterate there (``floor`` recorded), the state the
+    default tolerances reach; without the floor test the same solves run
+    to the iteration limit and fail (measured in the frictional knot: a
+    step whose |G| stood at 3.2e-9 with every contact tolerance met went
+    to the gradient flow)."""
+    from helpers import load_demo
+    rf = load_demo("rotational_friction")
+    strict = dict(n_steps=2, contact_solve="newton", rtol=1e-30, increment_tol=1e-300)
+    rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+    ref = rod.solve(n_steps=2, contact_solve="newton")
+    assert ref.converged, ref.message
+    rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+    res = rod.solve(**strict)
+    assert res.converged, res.message
+    for a, b in zip(ref.steps[1:], res.steps[1:]):
+        assert b.floor is not None and 0 < b.floor < 1e-8
+        assert b.contact.penetration <= 1e-3 * rf.EPS
+        assert np.abs(a.r - b.r).max() <= 1e-6 * rf.EPS
+    coulomb_checks(res, 0.0, rf.EPS)
+    monkeypatch.setattr(nonsmooth, "at_floor", lambda *a: None)
+    rod, _ = rf.build(rf.EPS, 2.0, 0.06, 32)
+    res = rod.solve(**strict)
+    assert not res.converged
+    assert "no convergence in 25 iterations" in " ".join(res.log) + res.message

@@ -262,12 +262,9 @@ def test_docstrings():
     assert attempted > 0 and failed == 0
 
 
-def test_relax_never_records_a_saddle(monkeypatch):
-    """snap="relax", stability=True: a step that lands on a saddle is pushed
-    off along its unstable mode and relaxed, at most solver.MAX_PUSHES
-    times; where every relaxed state is still a saddle (forced here: every
-    state reads as unstable) the step fails with the message, no saddle is
-    recorded, and the solve stops with the converged steps."""
+def _always_unstable(monkeypatch):
+    """Every state reads as unstable (its lowest eigenvalue made negative,
+    its mode kept)."""
     from skfem_rod import solver
     real = solver.LoadStepper.lowest_mode
 
@@ -275,11 +272,27 @@ def test_relax_never_records_a_saddle(monkeypatch):
         value, mode, _ = real(self, r, R, lam)
         return -abs(value) - 1.0, mode, 1
 
+    monkeypatch.setattr(solver.LoadStepper, "lowest_mode", always_unstable)
+
+
+def _bent_cantilever():
     rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
                                               GJ=0.8), 4)
     rod.clamp("start")
     rod.add_force("end", [0.0, 1.0, 0.0])
-    monkeypatch.setattr(solver.LoadStepper, "lowest_mode", always_unstable)
+    return rod
+
+
+def test_relax_never_records_a_saddle(monkeypatch):
+    """snap="relax", stability=True: a step that lands on a saddle is pushed
+    off along its unstable mode and relaxed, at most solver.MAX_PUSHES
+    times; where every relaxed state is still a saddle (forced here: every
+    state reads as unstable; without contact a flow that comes back is no
+    reason to keep it: see the next test) the step fails with the message,
+    no saddle is recorded, and the solve stops with the converged steps."""
+    from skfem_rod import solver
+    _always_unstable(monkeypatch)
+    rod = _bent_cantilever()
     res = rod.solve(1, snap="relax", stability=True, min_step=0.2)
     assert not res.converged
     assert len(res.steps) == 1                    # step 0 only: no saddle kept
@@ -287,3 +300,35 @@ def test_relax_never_records_a_saddle(monkeypatch):
     assert f"after {solver.MAX_PUSHES} pushes" in res.message
     pushes = [line for line in res.log if "relaxing along the unstable mode" in line]
     assert len(pushes) % solver.MAX_PUSHES == 0 and pushes
+
+
+def test_a_state_in_contact_the_flow_comes_back_to_from_both_sides_is_kept(monkeypatch):
+    """The pressed hairpin (tests/test_contact.py) is a stable equilibrium
+    in contact; made to read as unstable, it is pushed off along its
+    lowest mode four times (solver.MAX_PUSHES), and the flow comes back to
+    it from the last two, both ways (solver.RETURN_SHARE): the state is
+    kept with the log line and the tangent's eigenvalue, and it is the
+    equilibrium found without the stability check.  Without the rule the
+    step fails as a saddle.  (In the plectoneme at 2.375 turns the tangent
+    of the nonsmooth contact read -0.15 to -0.21 at states every push came
+    back to, and the step was cut until the run ended.)"""
+    from skfem_rod import solver
+    from test_contact import SEC, hairpin
+
+    def pressed():
+        eps = SEC.radius
+        rod = Rod(hairpin(eps, 4 * eps), SEC, 40)
+        return rod.clamp("start").add_force("end", [0, -0.6, 0]).enable_contact(tolerance=1e-6)
+    plain = pressed().solve(1)          # one step: the load factor 1, in contact
+    assert plain.converged and plain.steps[-1].contact.s.size > 0
+    _always_unstable(monkeypatch)
+    res = pressed().solve(1, snap="relax", stability=True, min_step=0.5)
+    assert res.converged, res.message
+    pushes = [m for m in res.log if m.startswith("step to lam=1: unstable")]
+    assert len(pushes) == solver.MAX_PUSHES
+    assert any(m.startswith("step to lam=1: the flow came back") for m in res.log)
+    assert res.steps[1].lowest_eigenvalue < 0
+    assert np.abs(res.steps[1].r - plain.steps[1].r).max() < 1e-4 * SEC.radius
+    monkeypatch.setattr(solver, "RETURN_SHARE", 0.0)
+    res = pressed().solve(1, snap="relax", stability=True, min_step=0.5)
+    assert not res.converged and "unstable equilibrium" in res.message

@@ -230,6 +230,8 @@ def test_unstable_step_is_pushed_off_and_relaxed_onto_the_elastica():
     assert plain.converged and plain.steps[-1].lowest_eigenvalue < 0   # straight, unstable
     res = rod.solve(1, stability=True, snap="relax")
     assert res.converged and any("unstable equilibrium" in m for m in res.log)
+    # a true saddle: the flow from the push leads away, it does not come back
+    assert not any("came back" in m for m in res.log)
     st = res.steps[-1]
     assert st.lowest_eigenvalue > 0 and st.flow_steps > 0
     k = brentq(lambda k: ellipk(k * k) - 0.5 * np.pi * np.sqrt(ratio), 1e-6, 0.999)
