@@ -491,12 +491,15 @@ class Problem:
         return self.to_basis(self.f_dist + f1 - f0)
 
     # -- evaluation --------------------------------------------------------
-    def evaluate(self, r, R, lam, tangent=True, friction=None, frozen=False):
+    def evaluate(self, r, R, lam, tangent=True, friction=None, frozen=False, stiffen=1.0):
         """:class:`Evaluation` at ``(r, R)`` and load factor ``lam``;
         ``friction=False`` leaves the friction work out (default: as the
         problem has it, :attr:`friction`); ``frozen``: the crossing pairs'
         tangent at frozen weights (no weight derivative,
-        :func:`skfem_rod.contact.crossing.crossing_work`)."""
+        :func:`skfem_rod.contact.crossing.crossing_work`); ``stiffen``: the
+        active gaps' stiffness (``df_N / d gap``) times this in the tangent,
+        the forces unchanged (the constrained stability test,
+        :meth:`free_tangent`)."""
         rod = self.rod
         t0 = time.perf_counter()
         iw = internal_work(self.mesh, r, R, rod.eps0, rod.C, tangent=tangent, Z=self.Z)
@@ -513,7 +516,7 @@ class Problem:
             K = K + Kp
         ce = None
         if self.contact is not None:
-            ce, fc, Kc = self._contact(r, R, tangent, friction, frozen)
+            ce, fc, Kc = self._contact(r, R, tangent, friction, frozen, stiffen)
             res = res + fc
             if tangent:
                 K = K + Kc
@@ -529,7 +532,7 @@ class Problem:
             K = K.tocsc()
         return Evaluation(residual=res, tangent=K, external=f_ext, internal=iw, contact=ce)
 
-    def _contact(self, r, R, tangent, friction=None, frozen=False):
+    def _contact(self, r, R, tangent, friction=None, frozen=False, stiffen=1.0):
         """Search, normal contact work and (``friction``, default
         :attr:`friction`) friction work, on the contact curve (the rod's
         centreline, or the smooth curve of :attr:`contact_curve`, pulled
@@ -537,14 +540,15 @@ class Problem:
         friction = self.friction if friction is None else friction
         cc = self.contact_curve
         if cc is None:
-            return self._contact_on(self.mesh, r, R, self.reference, tangent, friction, frozen)
+            return self._contact_on(self.mesh, r, R, self.reference, tangent, friction, frozen,
+                                    stiffen)
         ref = None if self.reference is None else (cc.positions(self.reference[0]),
                                                    cc.rotations(self.reference[1]))
         ce, force, K = self._contact_on(cc.mesh, cc.positions(r), cc.rotations(R), ref,
-                                        tangent, friction, frozen)
+                                        tangent, friction, frozen, stiffen)
         return ce, cc.force(force), (cc.tangent(K) if tangent else None)
 
-    def _contact_on(self, mesh, r, R, reference, tangent, friction, frozen=False):
+    def _contact_on(self, mesh, r, R, reference, tangent, friction, frozen=False, stiffen=1.0):
         """Contact work on the curve of ``mesh`` at nodal ``(r, R)``, with
         the friction work when ``friction`` (slips measured from
         ``reference``); ``frozen``: crossing weights held fixed in the
@@ -568,7 +572,8 @@ class Problem:
         offset = m.offset[pairs.slave]
         radius = c.radius + 0.5 * offset
         energy, force, K, fN = contact_work(mesh, r, pairs, m.normal, mu, radius,
-                                            tangent, cache=self.contact_patterns.normal)
+                                            tangent, cache=self.contact_patterns.normal,
+                                            stiffen=stiffen)
         t2 = time.perf_counter()
         tm["contact_search"] += t1 - t0
         tm["contact_assembly"] += t2 - t1
@@ -604,7 +609,8 @@ class Problem:
             cfric = bool(friction and c.crossing_friction and c.gamma_T > 0)
             rows = self.crossing_jacobian or (cfric and not frozen)
             out = crossing_work(mesh, r, cp, lam, self.crossing_compliance(), c.radius, tangent,
-                                fade=not frozen, offset=off, weight_rows=tangent and rows)
+                                fade=not frozen, offset=off, weight_rows=tangent and rows,
+                                stiffen=stiffen)
             ec, fc, Kc, fNc = out[:4]
             force = force + fc
             if tangent:
@@ -759,7 +765,7 @@ class Problem:
         self.calls["factor"] += 1
         return solve
 
-    def free_tangent(self, r, R, lam):
+    def free_tangent(self, r, R, lam, stiffen=1.0):
         """Tangent on the free dofs at ``(r, R, lam)`` (CSC, constrained rows
         and columns removed) and the relative residual there: what the
         stability checks (:mod:`skfem_rod.stability`) read.
@@ -783,10 +789,10 @@ class Problem:
         threshold, about 1e-4 eps) has eigenvalues of both signs far above
         the rod's; in the plectoneme it made a stable state a saddle with
         lowest eigenvalue -8e5 (docs/crossing-contact.md)."""
-        ev = self.evaluate(r, R, lam, tangent=not self.friction, frozen=True)
+        ev = self.evaluate(r, R, lam, tangent=not self.friction, frozen=True, stiffen=stiffen)
         residual = self.residual_norm(ev) / self.force_scale(ev)
         if self.friction:
-            ev = self.evaluate(r, R, lam, friction=False, frozen=True)
+            ev = self.evaluate(r, R, lam, friction=False, frozen=True, stiffen=stiffen)
         idx = np.flatnonzero(self.free)
         Kf = ev.tangent[idx][:, idx].tocsc()
         return Kf, residual

@@ -21,7 +21,8 @@ class Step:
     contact: object = None         # ContactState of the step (contact on only)
     time: float = 0.0              # pseudo-time along the load path
     flow_steps: int = 0            # gradient-flow steps (solve option snap="relax")
-    lowest_eigenvalue: float = None  # of the symmetrized tangent (option stability)
+    lowest_eigenvalue: float = None  # of the symmetrized tangent (option stability;
+    # with contact the active gaps stiffened: stability.CONTACT_STIFFENING)
     #: the gradient flow's state kept without a converged Newton polish: its
     #: residual relative to the force scale (above rtol)
     relaxed_residual: float = None

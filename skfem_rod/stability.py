@@ -63,6 +63,22 @@ from .problem import Problem
 #: the automatic shift starts at ``-SHIFT_FLOOR * max|diag K|`` (numerical zero)
 SHIFT_FLOOR = 1e-13
 
+#: the load stepping's stability test of a state in contact
+#: (:meth:`skfem_rod.solver.LoadStepper.lowest_mode`) reads the tangent with
+#: the active gaps' stiffness ``df_N / d gap`` times this, the forces
+#: unchanged: the Hessian of the Lagrangian plus ``rho A^T A`` over the
+#: strictly active gaps (``A`` their gradients), positive for a large
+#: enough ``rho`` exactly where the Hessian is positive on the directions
+#: that keep those gaps (Finsler's lemma), the second-order test of a
+#: constrained minimum.  The augmented Lagrangian's own penalty is soft
+#: (the Uzawa loop needs it so), and its tangent can read a stable
+#: constrained equilibrium as a saddle: in the plectoneme at 2.375 turns
+#: (100 elements) the lowest eigenvalue was -0.188 at the penalty, -0.104
+#: at 10 times it, and 2.380e-5 at 100, 1e3, 1e4 and 1e6 times it (the
+#: next ones 7.49e-3 ... 9.31e-3: converging to the constrained Hessian's)
+#: (docs/stability.md)
+CONTACT_STIFFENING = 1e4
+
 
 @dataclass
 class Modes:
@@ -124,12 +140,13 @@ class CriticalLoad:
 
 
 # ----------------------------------------------------------------------------
-def free_tangent(problem, r, R, lam):
+def free_tangent(problem, r, R, lam, stiffen=1.0):
     """Tangent on the free dofs at ``(r, R, lam)``: returns ``(K_free, info)``
     with ``K_free`` CSC (constrained rows and columns removed) and ``info``
     the relative equilibrium residual and the free-dof mask
-    (:meth:`skfem_rod.problem.Problem.free_tangent`)."""
-    Kf, residual = problem.free_tangent(r, R, lam)
+    (:meth:`skfem_rod.problem.Problem.free_tangent`; ``stiffen``: the
+    active gaps' stiffness times this, the constrained test)."""
+    Kf, residual = problem.free_tangent(r, R, lam, stiffen)
     return Kf, dict(residual=residual, free=problem.free)
 
 
@@ -208,10 +225,11 @@ def symmetric_eigen(Ks, k, sigma=None):
     return w[order], V[:, order], shift, negative
 
 
-def modes(problem, r, R, lam, k, sigma=None):
+def modes(problem, r, R, lam, k, sigma=None, stiffen=1.0):
     """:class:`Modes`: the ``k`` lowest eigenpairs (or nearest ``sigma``) of the
-    symmetrized tangent of ``problem`` on the free dofs at ``(r, R, lam)``."""
-    Kf, info = free_tangent(problem, r, R, lam)
+    symmetrized tangent of ``problem`` on the free dofs at ``(r, R, lam)``
+    (``stiffen``: :meth:`skfem_rod.problem.Problem.free_tangent`)."""
+    Kf, info = free_tangent(problem, r, R, lam, stiffen)
     nK = spla.norm(Kf)
     skew = float(spla.norm(Kf - Kf.T))
     asym = skew / nK if nK > 0 else 0.0

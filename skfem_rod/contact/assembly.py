@@ -113,10 +113,12 @@ class _TangentTerms:
         return G
 
 
-def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True, cache=None):
+def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True, cache=None, stiffen=1.0):
     """Energy, force vector ``(n_dofs,)`` and tangent (CSC or None) of the
     contact pairs, and the per-pair normal forces ``f_N``.  ``cache``: the
-    :class:`PatternCache` of the tangent's pattern (default: none kept)."""
+    :class:`PatternCache` of the tangent's pattern (default: none kept);
+    ``stiffen``: the active pairs' ``df_N / d gap`` times this in the tangent
+    (the constrained stability test), the forces unchanged."""
     n = mesh.n_dofs
     m = pairs.size
     if m == 0:
@@ -151,7 +153,7 @@ def contact_work(mesh, r, pairs, lam, mu, radius, tangent=True, cache=None):
         use = pairs.interior[keep] & (den > 1e-8 * np.sum(y1 * y1, axis=1))
         Om = np.where(use, 1.0 / np.where(use, den, 1.0), 0.0)
         terms = _TangentTerms(pairs.s_elem[keep], pairs.m_elem[keep], P, Q, Nv,
-                              y1 / l[:, None], w * dfa, w * fa / l, w * fa * Om * l)
+                              y1 / l[:, None], stiffen * w * dfa, w * fa / l, w * fa * Om * l)
         K = _tangent(mesh, terms, PatternCache() if cache is None else cache)
     return energy, force, K, fN
 

@@ -1170,7 +1170,7 @@ def gap_gradients(mesh, pairs):
 
 
 def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offset=None,
-                  weight_rows=False):
+                  weight_rows=False, stiffen=1.0):
     """Energy, force vector ``(n_dofs,)``, tangent (CSC or None) and the
     per-pair forces ``f_N`` of the crossing pairs (``pairs`` from
     :func:`crossing_pairs` at ``r``; ``lam`` ``(m,)`` their multipliers,
@@ -1196,7 +1196,9 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
     ``weight_rows`` (with ``tangent``): a fifth output, the ``(m, n_dofs)``
     CSR matrix of the weights' derivatives ``dw/dq`` (zero rows where a
     pair's weight has no slope), read by the generalized Newton's
-    complementarity rows (:func:`skfem_rod.nonsmooth.contact_blocks`)."""
+    complementarity rows (:func:`skfem_rod.nonsmooth.contact_blocks`).
+    ``stiffen``: the pairs' ``df_N / d gap`` times this in the tangent, the
+    forces unchanged (the constrained stability test)."""
     n = mesh.n_dofs
     m = pairs.size
     if m == 0:
@@ -1240,7 +1242,7 @@ def crossing_work(mesh, r, pairs, lam, mu, radius, tangent=True, fade=True, offs
     S = np.linalg.solve(Fpp, Fpq)                                 # -dp/dq
     H = Fqq - np.swapaxes(Fpq, 1, 2) @ S                          # reduced Hessian of F
     lqq = H / l[:, None, None] - lq[:, :, None] * lq[:, None, :] / l[:, None, None]
-    Ke = w[:, None, None] * (dfN[:, None, None] * lq[:, :, None] * lq[:, None, :]
+    Ke = w[:, None, None] * (stiffen * dfN[:, None, None] * lq[:, :, None] * lq[:, None, :]
                              - fN[:, None, None] * lqq)
     rows, cols = [dofs], [dofs]
     blocks = [Ke]
