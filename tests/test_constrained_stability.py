@@ -64,3 +64,31 @@ def test_stiffening_adds_the_active_gaps_penalty_only(degrees):
     expect = _gram(n, cdofs, lq, 49.0 * w * dfN)
     D = (KF - K1).toarray()
     np.testing.assert_allclose(D, expect, atol=1e-9 * np.abs(expect).max())
+
+
+def test_the_load_stepping_reads_the_constrained_test_with_contact_only(monkeypatch):
+    """``stability=True``: the load stepping's test (``solver.modes``) is
+    asked for the stiffened tangent when contact is on, the plain one
+    without; the pressed hairpin's recorded state (in contact) reads
+    stable by it."""
+    from skfem_rod import Rod, Section, geometry, solver
+    from skfem_rod.stability import CONTACT_STIFFENING
+    from test_contact import SEC, hairpin
+    seen = []
+    real = solver.modes
+
+    def spy(*a, **k):
+        seen.append(k.get("stiffen", 1.0))
+        return real(*a, **k)
+    monkeypatch.setattr(solver, "modes", spy)
+    eps = SEC.radius
+    rod = Rod(hairpin(eps, 4 * eps), SEC, 40).clamp("start").add_force("end", [0, -0.6, 0])
+    res = rod.enable_contact(tolerance=1e-6).solve(1, stability=True)
+    assert res.converged and res.steps[-1].contact.s.size > 0
+    assert res.steps[-1].lowest_eigenvalue > 0
+    assert seen and set(seen) == {CONTACT_STIFFENING}
+    seen.clear()
+    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
+                                              GJ=0.8), 4)
+    rod.clamp("start").add_force("end", [0.0, 1.0, 0.0]).solve(1, stability=True)
+    assert seen and set(seen) == {1.0}
