@@ -165,9 +165,12 @@ def morse_index(problem, r, R, lam):
     :func:`skfem_rod.stability.inertia`): 0 at a stable equilibrium.  A
     static Newton step can converge to an unstable equilibrium (the twisted
     rod past its fold goes back to the straight branch); the damped steps
-    cannot rest there."""
-    from .stability import inertia
-    Kf = problem.free_tangent(r, R, lam)[0]
+    cannot rest there.  With contact, the constrained test
+    (:data:`skfem_rod.stability.CONTACT_STIFFENING`), as the load
+    stepping's."""
+    from .stability import CONTACT_STIFFENING, inertia
+    stiffen = 1.0 if problem.contact is None else CONTACT_STIFFENING
+    Kf = problem.free_tangent(r, R, lam, stiffen)[0]
     Ks = (0.5 * (Kf + Kf.T)).tocsc()
     floor = STABLE_FLOOR * max(float(np.abs(Ks.diagonal()).max(initial=0.0)), 1e-300)
     return inertia(Ks, -floor)
