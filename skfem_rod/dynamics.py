@@ -168,9 +168,8 @@ def morse_index(problem, r, R, lam):
     cannot rest there.  With contact, the constrained test
     (:data:`skfem_rod.stability.CONTACT_STIFFENING`), as the load
     stepping's."""
-    from .stability import CONTACT_STIFFENING, inertia
-    stiffen = 1.0 if problem.contact is None else CONTACT_STIFFENING
-    Kf = problem.free_tangent(r, R, lam, stiffen)[0]
+    from .stability import contact_stiffening, inertia
+    Kf = problem.free_tangent(r, R, lam, contact_stiffening(problem))[0]
     Ks = (0.5 * (Kf + Kf.T)).tocsc()
     floor = STABLE_FLOOR * max(float(np.abs(Ks.diagonal()).max(initial=0.0)), 1e-300)
     return inertia(Ks, -floor)

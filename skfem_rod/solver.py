@@ -33,7 +33,7 @@ from .problem import Problem, clearance_ok, spin_cap
 from .relax import GradientFlow
 from .results import Result
 from .rotations import is_rotation
-from .stability import CONTACT_STIFFENING, modes
+from .stability import contact_stiffening, modes
 
 __all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall", "RelaxedShortfall"]
 
@@ -192,8 +192,7 @@ class LoadStepper:
         dofs (at the problem's multipliers) and the Morse index; with
         contact, the active gaps stiffened (the constrained test,
         :data:`skfem_rod.stability.CONTACT_STIFFENING`)."""
-        stiffen = 1.0 if self.problem.contact is None else CONTACT_STIFFENING
-        m = modes(self.problem, r, R, lam, 1, stiffen=stiffen)
+        m = modes(self.problem, r, R, lam, 1, stiffen=contact_stiffening(self.problem))
         mode = np.concatenate([m.positions[0], m.spins[0]], axis=1).ravel()
         return float(m.values[0]), self.problem.to_basis(mode), m.negative
 

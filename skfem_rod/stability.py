@@ -80,6 +80,13 @@ SHIFT_FLOOR = 1e-13
 CONTACT_STIFFENING = 1e4
 
 
+def contact_stiffening(problem):
+    """The ``stiffen`` factor of the stability tests of ``problem``
+    (:func:`modes`, :func:`skfem_rod.dynamics.morse_index`):
+    :data:`CONTACT_STIFFENING` with contact on, else 1."""
+    return 1.0 if problem.contact is None else CONTACT_STIFFENING
+
+
 @dataclass
 class Modes:
     """Lowest eigenpairs of the symmetrized tangent at one configuration.
