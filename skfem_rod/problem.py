@@ -788,7 +788,11 @@ class Problem:
         its weight's derivative (the pair's force over the rise at the
         threshold, about 1e-4 eps) has eigenvalues of both signs far above
         the rod's; in the plectoneme it made a stable state a saddle with
-        lowest eigenvalue -8e5 (docs/crossing-contact.md)."""
+        lowest eigenvalue -8e5 (docs/crossing-contact.md).
+
+        ``stiffen``: the active gaps' stiffness times this, the forces
+        unchanged (the constrained test of a state in contact:
+        :data:`skfem_rod.stability.CONTACT_STIFFENING`)."""
         ev = self.evaluate(r, R, lam, tangent=not self.friction, frozen=True, stiffen=stiffen)
         residual = self.residual_norm(ev) / self.force_scale(ev)
         if self.friction:

@@ -63,8 +63,9 @@ from .problem import Problem
 #: the automatic shift starts at ``-SHIFT_FLOOR * max|diag K|`` (numerical zero)
 SHIFT_FLOOR = 1e-13
 
-#: the load stepping's stability test of a state in contact
-#: (:meth:`skfem_rod.solver.LoadStepper.lowest_mode`) reads the tangent with
+#: the stability test of a state in contact (the load stepping's
+#: :meth:`skfem_rod.solver.LoadStepper.lowest_mode` and the pseudo-dynamics'
+#: :func:`skfem_rod.dynamics.morse_index`) reads the tangent with
 #: the active gaps' stiffness ``df_N / d gap`` times this, the forces
 #: unchanged: the Hessian of the Lagrangian plus ``rho A^T A`` over the
 #: strictly active gaps (``A`` their gradients), positive for a large
