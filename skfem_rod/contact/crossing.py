@@ -172,91 +172,23 @@ def _lowest_rows(rank, n):
 
 def _newton(C1, C2, u, v, iterations):
     """Projected, safeguarded Newton on ``|X(u) - Y(v)|^2 / 2`` from
-    ``(u, v)``, on the pairs not yet converged only.
+    ``(u, v)`` per pair of curves (monomial coefficients ``C1``, ``C2``
+    ``(4, 3, m)``), at most ``iterations`` each; returns ``(u, v,
+    distance)``.  The loop per pair is compiled
+    (:func:`skfem_rod.contact.kernels.closest_points_newton`, which says
+    what an iteration does).
 
-    Both curves of a pair are evaluated in one call: their coefficients
-    side by side ``(4, 3, 2, m)`` at the parameters ``(2, m)`` (``u``,
-    ``v``), every operation on the pairs still active."""
+    Where both parameters are free but the quadratic model has no minimum
+    (a saddle or a flat valley: wrapped strands) the step is Newton's on
+    the Hessian shifted to positive definite, at most a quarter element
+    long, so that the halvings search along the valley to where it ends.
+    The coordinate steps used there before crept along it (updates of
+    1.5e-3 per iteration after 40 iterations in the knot's braid, which
+    kept every call at the iteration limit)."""
+    from .kernels import closest_points_newton
     C = np.stack([C1, C2], axis=2)                           # (4, 3, 2, m)
-    p = np.stack([u, v])                                     # (2, m): u, v
-    act = np.arange(u.size)
-    for _ in range(iterations):
-        c, pa = C.take(act, axis=3), p.take(act, axis=1)
-        ua, va = pa
-        P, P1, P2 = curve_point(c, pa)                       # (3, 2, k): X and Y
-        X1, X2, Y1, Y2 = P1[:, 0], P2[:, 0], P1[:, 1], P2[:, 1]
-        D = P[:, 0] - P[:, 1]
-        gu, gv = _dot(D, X1), -_dot(D, Y1)
-        huu, hvv, huv = _hessian(D, X1, X2, Y1, Y2)
-        # a parameter on a bound with the gradient pushing outward stays
-        fu = ~(((ua <= 0) & (gu > 0)) | ((ua >= 1) & (gu < 0)))
-        fv = ~(((va <= 0) & (gv > 0)) | ((va >= 1) & (gv < 0)))
-        det = huu * hvv - huv * huv
-        both = fu & fv & (huu > 0) & (det > 1e-14 * (huu * hvv + 1e-300))
-        safe = lambda h, g: np.where(h > 1e-14, g / np.where(h > 1e-14, h, 1.0),   # noqa: E731
-                                     0.1 * np.sign(g))
-        # Newton where the quadratic model has a minimum, else a safe step
-        # in each parameter alone (one held on a bound: its step is 0 below)
-        du = np.where(both, (hvv * gu - huv * gv) / np.where(both, det, 1.0), safe(huu, gu))
-        dv = np.where(both, (huu * gv - huv * gu) / np.where(both, det, 1.0), safe(hvv, gv))
-        # both free but no minimum of the quadratic model (a saddle or a flat
-        # valley: wrapped strands): Newton on the Hessian shifted to positive
-        # definite, so the step runs down the valley to where it ends.  The
-        # coordinate steps used there before crept along it (updates of
-        # 1.5e-3 per iteration after 40 iterations in the knot's braid,
-        # which kept every call at the iteration limit).  (Most iterations
-        # have no such pair: the branch is skipped, with the same steps.)
-        shift = fu & fv & ~both
-        shifted = shift.any()
-        if shifted:
-            lmin = 0.5 * (huu + hvv) - np.sqrt(0.25 * (huu - hvv) ** 2 + huv * huv)
-            mu = np.where(shift, np.maximum(0.0, -lmin) + 1e-9 * np.abs(huu + hvv) + 1e-300, 0.0)
-            su, sv = huu + mu, hvv + mu
-            sdet = np.where(shift, su * sv - huv * huv, 1.0)
-            du = np.where(shift, (sv * gu - huv * gv) / sdet, du)
-            dv = np.where(shift, (su * gv - huv * gu) / sdet, dv)
-        du, dv = np.where(fu, du, 0.0), np.where(fv, dv, 0.0)
-        if shifted:
-            # the shifted step can be as long as the valley: at most a quarter
-            # element, so that its halvings below search along it (clipped to
-            # the element, a longer step turns aside and no halving descends)
-            big = np.maximum(np.where(shift, np.maximum(np.abs(du), np.abs(dv)) / 0.25, 1.0),
-                             1.0)
-            du, dv = du / big, dv / big
-        dp = np.stack([du, dv])                              # (2, k)
-        # safeguard: backtrack until the distance does not increase (stay
-        # put if it always does: a minimum to round-off); the first, full
-        # step on every pair, the halvings on those it did not descend for
-        DD = _dot(D, D)
-        f0 = DD * (1 + 1e-15) + 1e-300
-        trial = np.clip(pa - dp, 0.0, 1.0)
-        Pn = curve_position(c, trial)
-        Dn = Pn[:, 0] - Pn[:, 1]
-        ok = _dot(Dn, Dn) <= f0
-        new = np.where(ok, trial, pa)
-        todo = np.flatnonzero(~ok)
-        step = 1.0
-        for _ in range(11):
-            if todo.size == 0:
-                break
-            step *= 0.5
-            trial = np.clip(pa.take(todo, axis=1) - step * dp.take(todo, axis=1), 0.0, 1.0)
-            Pn = curve_position(c.take(todo, axis=3), trial)
-            Dn = Pn[:, 0] - Pn[:, 1]
-            ok = _dot(Dn, Dn) <= f0[todo]
-            new[:, todo[ok]] = trial[:, ok]
-            todo = todo[~ok]
-        # stationary (the projected gradient at round-off) or stuck
-        tol = 1e-13 * np.sqrt(DD * (_dot(X1, X1) + _dot(Y1, Y1))) + 1e-300
-        stationary = (np.abs(np.where(fu, gu, 0.0)) <= tol) & (np.abs(np.where(fv, gv, 0.0)) <= tol)
-        moved = ((np.abs(new[0] - ua) >= 1e-12) | (np.abs(new[1] - va) >= 1e-12)) & ~stationary
-        p[:, act] = new
-        act = act[moved]
-        if act.size == 0:
-            break
-    P = curve_position(C, p)
-    D = P[:, 0] - P[:, 1]
-    return p[0], p[1], np.sqrt(_dot(D, D))
+    return closest_points_newton(C, np.asarray(u, float), np.asarray(v, float),
+                                 int(iterations))
 
 
 def _segment_pairs(p0, p1, q0, q1):
