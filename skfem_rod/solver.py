@@ -11,9 +11,11 @@ The loop, in plain sight::
                 Newton (newton.py) from the last state, prescribed increments
                 applied on the first iteration
             [snap="relax": a failed step is relaxed by the gradient flow
-             (relax.py); stability=True: an unstable equilibrium is pushed
-             off along its unstable mode and relaxed, up to MAX_PUSHES
-             times; still unstable: the step fails]
+             (relax.py); after such a step the next ones go to the flow
+             directly, Newton tried again after 1, 2, 4, 8 of them
+             (NewtonBackoff); stability=True: an unstable equilibrium is
+             pushed off along its unstable mode and relaxed, up to
+             MAX_PUSHES times; still unstable: the step fails]
         converged: keep the step, commit it (friction slips start there),
                    let dt grow back after two successes
         failed:    halve dt; stop with the converged steps if dt < min_step
@@ -29,7 +31,7 @@ import numpy as np
 from .augmented import step
 from .dynamics import in_contact
 from .options import Deadline, SolverOptions, make_options
-from .problem import Problem, clearance_ok, spin_cap
+from .problem import Problem, Report, clearance_ok, spin_cap
 from .relax import GradientFlow
 from .results import Result
 from .rotations import is_rotation
@@ -61,6 +63,54 @@ MAX_PUSHES = 4
 #: (docs/stability.md; the pseudo-dynamics' rule is
 #: :meth:`skfem_rod.dynamics.PseudoDynamics.came_back`)
 RETURN_SHARE = 0.1
+
+
+#: the most steps in a row :class:`NewtonBackoff` sends to the gradient
+#: flow without trying Newton first (0: Newton is tried at every step)
+MAX_SKIPS = 8
+
+
+class NewtonBackoff:
+    """Which steps of ``snap="relax"`` try Newton before the gradient flow.
+
+    A step that Newton does not solve is solved again by the flow from the
+    step's start, so Newton's attempt is spent.  Where Newton fails at step
+    after step (a loose knot whose loops swing and slide, a plectoneme
+    growing past its fold: each step a new active set), that is most of
+    the time: measured in the knot's frictional cycle (``gamma_T`` = 0.2,
+    benchmarks/bench_knot.py), every one of the 20 steps failed Newton
+    (the generalized Newton, and with Uzawa alike), a third of the cycle's
+    time, and the flows that did the steps are the same with or without
+    those attempts (the same flow steps, the same forces).  So after a
+    step Newton failed and the flow did, the next ``wait`` steps go to the
+    flow directly, ``wait`` = 1, 2, 4, ... :data:`MAX_SKIPS` while Newton
+    keeps failing when it is tried, back to 0 when it succeeds.  A step
+    whose flow failed too (the step is cut) starts no wait: the shorter
+    step may be Newton's.
+
+    Scenes where Newton does its steps never meet it; a snap met once (the
+    twisted rod's jump) costs at most a step or two through the flow,
+    whose Levenberg-Marquardt steps end as Newton's."""
+
+    def __init__(self):
+        #: the wait after Newton's last failure, and the steps of it left
+        self.wait, self.left = 0, 0
+
+    def skip(self):
+        """Whether this step goes to the flow without trying Newton."""
+        if self.left:
+            self.left -= 1
+            return True
+        return False
+
+    def record(self, newton_failed, flow_solved):
+        """After a step that tried Newton: whether Newton failed (or its
+        state was rejected), and whether the flow then solved the step."""
+        if not newton_failed:
+            self.wait = 0
+        elif flow_solved:
+            self.wait = min(max(1, 2 * self.wait), MAX_SKIPS)
+            self.left = self.wait
 
 
 class ContactShortfall(UserWarning):
@@ -172,6 +222,7 @@ class LoadStepper:
         self.result = Result(rod)
         self.deadline = Deadline(opts.time_limit)
         self.flow = GradientFlow(self.problem, self.deadline)
+        self.backoff = NewtonBackoff()
 
     def initial(self, r0, R0, stressed):
         """Step 0 at load factor 0: an equilibrium solve from a stressed start
@@ -220,18 +271,31 @@ class LoadStepper:
 
     def advance(self, r, R, lam, lam_new, prev):
         """The step ``lam -> lam_new`` from ``(r, R)``, with the snap and
-        stability options.  Returns ``(r, R, report)``."""
+        stability options; with ``snap="relax"`` Newton is tried first
+        unless :class:`NewtonBackoff` sends the step to the flow directly.
+        Returns ``(r, R, report)``."""
         p, opts = self.problem, self.opts
         flows = p.calls["flow_steps"]
         saved = p.multipliers.copy() if p.multipliers is not None else None
         presc = p.prescribed(lam_new - lam)
-        r_p, R_p = r, R
-        if opts.predictor == "secant" and prev is not None and lam != prev[0]:
-            r_p, R_p = self.secant(r, R, prev, (lam_new - lam) / (lam - prev[0]))
-        r1, R1, rep = step(p, r_p, R_p, lam_new, presc, opts)
-        if opts.snap == "relax" or opts.stability:
-            r1, R1, rep = self.snap(r, R, lam_new, presc, (r1, R1, rep), saved)
-            rep.flow_steps = p.calls["flow_steps"] - flows
+        relax = opts.snap == "relax"
+        tried = not (relax and self.backoff.skip())
+        if not tried:
+            trial = (r, R, Report(False, reason=f"Newton not tried: it failed at the last step "
+                                                f"it was tried (then tried at one step in "
+                                                f"{self.backoff.wait + 1})"))
+        else:
+            r_p, R_p = r, R
+            if opts.predictor == "secant" and prev is not None and lam != prev[0]:
+                r_p, R_p = self.secant(r, R, prev, (lam_new - lam) / (lam - prev[0]))
+            trial = step(p, r_p, R_p, lam_new, presc, opts)
+        if not (relax or opts.stability):
+            return trial
+        r1, R1, rep = self.snap(r, R, lam_new, presc, trial, saved)
+        rep.flow_steps = p.calls["flow_steps"] - flows
+        if relax and tried:
+            # snap marks Newton's report not converged where it rejects its state
+            self.backoff.record(not trial[2].converged, rep.converged)
         return r1, R1, rep
 
     def snap(self, r, R, lam_new, presc, trial, saved):
