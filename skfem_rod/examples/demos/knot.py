@@ -133,7 +133,8 @@ def build(gamma_T=0.0, pull=0.2, n_elements=60, eps=EPS, clearance=6.0, tail=0.5
     # eps with the slave points alone; with the braid's crossings held at
     # their closest points the forces at 1e-4 eps are those at 1e-5 eps to
     # 0.1 %, and the frictionless cycle's up and down forces agree to
-    # 2.3e-4 of the force in 36 s (docs/knot.md, "Crossing pairs")
+    # 2.3e-4 of the force in 13 s (docs/knot.md, "Newton tried at one
+    # step in n")
     contact.setdefault("crossing", True)
     contact.setdefault("curve", "smooth")
     contact.setdefault("crossing_sampling", 1e-3)
