@@ -16,7 +16,10 @@ Each kernel is the scalar form of an algorithm documented where it is
 used; this module holds no other logic:
 
 * :func:`closest_points_newton`: the safeguarded, projected Newton on
-  ``|X(u) - Y(v)|^2 / 2`` of :func:`skfem_rod.contact.crossing.local_minima`.
+  ``|X(u) - Y(v)|^2 / 2`` of :func:`skfem_rod.contact.crossing.local_minima`;
+* :func:`projection_newton`: the projection of a point on an element
+  curve of :func:`skfem_rod.contact.search.project` (the slave points'
+  master points).
 
 numba is imported with this module, which the searches import at their
 first call (heavy imports lazy); the kernels are compiled at their first
@@ -25,7 +28,7 @@ call and cached on disk (``cache=True``).
 import numba
 import numpy as np
 
-__all__ = ["closest_points_newton"]
+__all__ = ["closest_points_newton", "projection_newton"]
 
 
 @numba.njit(cache=True)
@@ -146,3 +149,35 @@ def closest_points_newton(C, u, v, iterations):
                 break
         uo[k], vo[k], d[k] = ua, va, np.sqrt(_gap2(C, k, ua, va))
     return uo, vo, d
+
+
+@numba.njit(cache=True)
+def projection_newton(x, E, xi, iterations):
+    """Newton on ``|y(xi) - x|^2 / 2`` per point, from ``xi``: the points
+    ``x`` ``(3, m)``, the curves' monomial coefficients with those of their
+    derivatives ``E`` ``(7, 3, m)`` (``C0..C3``, ``3 C3``, ``2 C2``,
+    ``6 C3``).  Newton where the distance is locally convex, a gradient
+    step of a quarter element else, clipped to [0, 1]; a point stops when
+    its parameter moves by at most 1e-15.  Returns ``xi``."""
+    out = xi.copy()
+    for k in range(out.size):
+        t = out[k]
+        for _ in range(iterations):
+            n1 = f = gy2 = 0.0
+            for c in range(3):
+                y = ((E[3, c, k] * t + E[2, c, k]) * t + E[1, c, k]) * t + E[0, c, k]
+                y1 = (E[4, c, k] * t + E[5, c, k]) * t + E[1, c, k]
+                y2 = E[6, c, k] * t + E[5, c, k]
+                g = y - x[c, k]
+                n1 += y1 * y1
+                f += g * y1
+                gy2 += g * y2
+            fp = n1 + gy2
+            step = f / fp if fp > 1e-12 * n1 else 0.25 * np.sign(f)
+            new = _clip01(t - step)
+            moved = abs(new - t) > 1e-15
+            t = new
+            if not moved:
+                break
+        out[k] = t
+    return out

@@ -172,41 +172,17 @@ def _project(x, C, iterations=12):
     """:func:`project` for points ``x`` ``(3, m)`` on curves ``C``
     ``(4, 3, m)``; also returns the closest points ``(3, m)``.
 
-    The Newton iterations run on the points not yet converged only, with
-    the coefficients of the first and second derivatives formed once
-    (``3 c3``, ``2 c2``, ``6 c3``: the products :func:`curve_point` forms,
-    so the same round-off)."""
-    m = x.shape[1]
+    The Newton iterations run per point in a compiled loop
+    (:func:`skfem_rod.contact.kernels.projection_newton`), with the
+    coefficients of the first and second derivatives formed once (``3
+    c3``, ``2 c2``, ``6 c3``: the products :func:`curve_point` forms, so
+    the same round-off)."""
+    from .kernels import projection_newton
     d = np.einsum("tp,pcm->tcm", _SAMPLE_POWERS, C) - x       # (5, 3, m)
     xi = _SAMPLES[np.argmin(np.einsum("tcm,tcm->tm", d, d), axis=0)]
-    todo = np.arange(m)
     E = np.concatenate([C, [3.0 * C[3], 2.0 * C[2], 6.0 * C[3]]])   # (7, 3, m)
-    Et, xt, xit = E, x, xi.copy()
+    xi = projection_newton(np.ascontiguousarray(x, dtype=float), E, xi, int(iterations))
     dot = np.add.reduce          # np.sum over the components, without its wrapper
-    for _ in range(iterations):
-        y = curve_position(Et, xit)
-        y1 = (Et[4] * xit + Et[5]) * xit + Et[1]
-        y2 = Et[6] * xit + Et[5]
-        g = y - xt
-        n1 = dot(y1 * y1, axis=0)
-        f = dot(g * y1, axis=0)
-        fp = n1 + dot(g * y2, axis=0)
-        # Newton where the distance is locally convex, a gradient step else
-        convex = fp > 1e-12 * n1
-        if convex.all():                                      # (fp > 0: no zero)
-            step = f / fp
-        else:
-            step = np.where(convex, f / np.where(fp == 0, 1, fp), 0.25 * np.sign(f))
-        new = np.clip(xit - step, 0.0, 1.0)
-        moved = np.abs(new - xit) > 1e-15
-        xi[todo] = new
-        if not moved.all():
-            todo, Et, xt, xit = (todo[moved], Et.compress(moved, axis=2),
-                                 xt.compress(moved, axis=1), new[moved])
-            if todo.size == 0:
-                break
-        else:
-            xit = new
     y, y1, _ = curve_point(C, xi)
     g = y - x
     f = np.abs(dot(g * y1, axis=0))
