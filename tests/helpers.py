@@ -86,3 +86,15 @@ def spy_reports(monkeypatch, module, name):
 
     monkeypatch.setattr(module, name, spy)
     return seen
+
+
+def bent_cantilever(tip_force=(0.0, 1.0, 0.0), n_elements=4):
+    """A unit cantilever (EI = 1, GJ = 0.8, EA = GA = 1e4) clamped at its
+    start, bent by a dead force at its end (load factor 1): a scene every
+    solver option can run in a second."""
+    from skfem_rod import Rod, Section, geometry
+    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
+                                              GJ=0.8), n_elements)
+    rod.clamp("start")
+    rod.add_force("end", list(tip_force))
+    return rod

@@ -4,7 +4,8 @@ solved, the next steps go to the flow directly, Newton tried again after
 import numpy as np
 import pytest
 
-from skfem_rod import Rod, Section, geometry, solver
+from helpers import bent_cantilever
+from skfem_rod import solver
 from skfem_rod.problem import Report
 
 
@@ -39,11 +40,7 @@ def test_a_newton_success_ends_the_wait_and_a_failed_flow_starts_none():
 
 
 def _cantilever():
-    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
-                                              GJ=0.8), 4)
-    rod.clamp("start")
-    rod.add_force("end", [0.0, 2.0, 0.5])
-    return rod
+    return bent_cantilever((0.0, 2.0, 0.5))
 
 
 def _failing_newton(monkeypatch, tries):

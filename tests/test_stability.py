@@ -22,6 +22,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.special import jv
 
+from helpers import bent_cantilever
 from skfem_rod import Rod, Section, geometry, stability
 from skfem_rod.problem import Problem
 from skfem_rod.stability import (EquilibriumPath, critical_load, inertia,
@@ -275,14 +276,6 @@ def _always_unstable(monkeypatch):
     monkeypatch.setattr(solver.LoadStepper, "lowest_mode", always_unstable)
 
 
-def _bent_cantilever():
-    rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
-                                              GJ=0.8), 4)
-    rod.clamp("start")
-    rod.add_force("end", [0.0, 1.0, 0.0])
-    return rod
-
-
 def test_relax_never_records_a_saddle(monkeypatch):
     """snap="relax", stability=True: a step that lands on a saddle is pushed
     off along its unstable mode and relaxed, at most solver.MAX_PUSHES
@@ -292,7 +285,7 @@ def test_relax_never_records_a_saddle(monkeypatch):
     no saddle is recorded, and the solve stops with the converged steps."""
     from skfem_rod import solver
     _always_unstable(monkeypatch)
-    rod = _bent_cantilever()
+    rod = bent_cantilever()
     res = rod.solve(1, snap="relax", stability=True, min_step=0.2)
     assert not res.converged
     assert len(res.steps) == 1                    # step 0 only: no saddle kept

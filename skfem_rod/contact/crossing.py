@@ -14,7 +14,8 @@ pair of elements ``(e, f)`` the closest points ``X(u)``, ``Y(v)``
 
 by a safeguarded 2 x 2 Newton (projected on the box, one-sided where a
 parameter sits on a bound, backtracking; started from the three best points
-of a 7 x 7 grid, the best result kept), vectorized over element pairs.
+of a 7 x 7 grid, the best result kept), per pair in a compiled loop
+(:mod:`.kernels`).
 Candidates come from a k-d tree of element bounding spheres, then a lower
 bound of their distance (chord to chord minus the bounds of each curve's
 distance from its chord, :func:`_bounds`); element pairs wholly inside the

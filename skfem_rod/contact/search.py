@@ -44,7 +44,8 @@ search returns the same pairs (``tests/test_contact_search.py``).
 
 *Narrow phase.*  A safeguarded Newton projection of the slave point on a
 candidate cubic element (parameter clamped to the element, started from
-the best of five samples; monomial coefficients, vectorized over pairs).
+the best of five samples; monomial coefficients, the iterations per pair
+in a compiled loop: :mod:`.kernels`).
 Per slave the candidate with the smallest bound is projected first, then
 only those whose bound is below the closest admissible distance found: the
 same answer as projecting every candidate, with a number of projections
