@@ -83,7 +83,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .newton import Report, newton, safeguarded_update
-from .problem import Increment, State, clearance_ok
+from .problem import Increment, State, clearance_ok, update_size
 
 __all__ = ["GradientFlow", "metric", "polish", "climbs", "static_residual", "clearance_ok"]
 
@@ -146,6 +146,16 @@ STALL_SHARE = 1e-12
 #: with friction on: iterations without a new least residual norm after
 #: which a flow has stalled, whatever its energy estimate
 FRICTION_STALL_WINDOW = 500
+#: a Levenberg-Marquardt flow whose last STALL_WINDOW taken steps each
+#: moved the state by at most this (``update_size``: the largest nodal
+#: move over the rod's length, or spin) has stalled: the residual jumps at
+#: the state itself.  Measured in the plectoneme (200 elements, the step
+#: to 1.8125 turns, an Uzawa pass): a crossing pair came and went with
+#: moves of 1e-18, the residual 15.46 <-> 31.25 between trials, every
+#: taken step's estimated energy change at round-off but its sum over 50
+#: steps above STALL_SHARE of the flow's small fall, and the flow ran for
+#: 2183 steps (95 s) until the time limit
+STILL_MOVE = 1e-14
 
 
 def stalled(drops, least, friction=False):
@@ -356,7 +366,10 @@ class GradientFlow:
         step length descends by the estimate), after :data:`STALL_WINDOW`
         iterations without progress (:func:`stalled`: the residual jumps at
         the state itself; with friction on, :data:`FRICTION_STALL_WINDOW`
-        iterations without a lower residual: a sliding mode), or
+        iterations without a lower residual: a sliding mode), after
+        :data:`STALL_WINDOW` taken steps in a row that each moved the state
+        by at most :data:`STILL_MOVE` (the same jump, where the flow's whole
+        fall was too small for the energy test), or
         ``max_flow_steps`` steps.  One linear solve
         per step, where a proximal step costs a Newton solve: the knot's
         cycle took a fifth of the time (docs/knot.md)."""
@@ -370,6 +383,7 @@ class GradientFlow:
         history, its, steps, nu, refused = [], 0, 0, 2.0, 0
         # the energy's fall and the least residual norm so far, per iteration
         drop, drops, least = 0.0, [], []
+        still = 0               # taken steps in a row that moved the state by round-off
         self.stalled = False
         why = f"{opts.max_flow_steps} steps"
         while steps < opts.max_flow_steps:
@@ -399,6 +413,11 @@ class GradientFlow:
                        if problem.friction else
                        f"no progress in {STALL_WINDOW} steps (the energy's fall below "
                        f"{STALL_SHARE:g} of the flow's, the residual not lower)")
+                break
+            if not moving and still >= STALL_WINDOW:
+                self.stalled = True
+                why = (f"its last {STALL_WINDOW} steps moved the state by at most "
+                       f"{STILL_MOVE:g} of the rod's length (the residual jumps at the state)")
                 break
             K = ev.tangent
             A = K + c * self.D
@@ -431,6 +450,7 @@ class GradientFlow:
                 r, R, ev = trial
                 drop += change
                 steps += 1
+                still = still + 1 if update_size(problem, d) <= STILL_MOVE else 0
                 problem.calls["flow_steps"] += 1
                 refused, nu = 0, 2.0
                 if alpha == 1.0:                         # else the safeguards set the length

@@ -264,3 +264,38 @@ def test_a_stalled_flow_is_taken_on_from_its_own_state(monkeypatch):
     (r_stall, p_stall), (r_fail, p_fail) = calls
     assert np.array_equal(r_stall, moved) and p_stall is None
     assert np.array_equal(r_fail, rod.r0) and p_fail is presc
+
+
+def _crawling_flow(monkeypatch, max_flow_steps):
+    """The released arc's flow with every Newton update scaled to 1e-16 of
+    itself: each taken step moves the state by round-off (as where a
+    crossing pair comes and goes with moves of 1e-18), the energy's
+    estimated fall of each step is 1e-16 of a real one's, so over any
+    window it is the same share of the flow's whole fall."""
+    force = np.array([0.0, -0.5 * EI, 0.0])
+    rod = released_arc(force)
+    problem = Problem(rod)
+    flow = relax.GradientFlow(problem)
+    factor = problem.factor
+
+    def crawl(K, fixed=None):
+        solve = factor(K, fixed)
+        return lambda rhs: 1e-16 * solve(rhs)
+    monkeypatch.setattr(problem, "factor", crawl)
+    opts = make_options({"max_flow_steps": max_flow_steps})
+    return flow, flow.linearized(rod.r0.copy(), rod.R0.copy(), 1.0, opts)
+
+
+def test_a_flow_whose_steps_move_by_round_off_has_stalled(monkeypatch):
+    """Its last STALL_WINDOW steps each moved the state by at most
+    STILL_MOVE: stalled (the proximal steps take over from its state),
+    where the energy rule (its fall the same share in every window) never
+    ends it: with STILL_MOVE = 0 it runs to max_flow_steps."""
+    flow, (r, R, lam, rep) = _crawling_flow(monkeypatch, 400)
+    assert not rep.converged and flow.stalled
+    assert "moved the state by at most" in rep.reason
+    assert rep.flow_steps == relax.STALL_WINDOW
+    monkeypatch.setattr(relax, "STILL_MOVE", 0.0)
+    flow, (r, R, lam, rep) = _crawling_flow(monkeypatch, 400)
+    assert not rep.converged and not flow.stalled
+    assert rep.flow_steps == 400 and "400 steps" in rep.reason
