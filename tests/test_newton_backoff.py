@@ -2,7 +2,6 @@
 solved, the next steps go to the flow directly, Newton tried again after
 1, 2, 4, ... solver.MAX_SKIPS of them (solver.NewtonBackoff)."""
 import numpy as np
-import pytest
 
 from helpers import bent_cantilever
 from skfem_rod import solver
