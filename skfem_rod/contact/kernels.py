@@ -32,6 +32,13 @@ __all__ = ["closest_points_newton", "projection_newton"]
 
 
 @numba.njit(cache=True)
+def _cubic(c0, c1, c2, c3, t):
+    """``c0 + c1 t + c2 t^2 + c3 t^3`` by the Horner scheme of
+    :func:`skfem_rod.contact.search.curve_position` (the same round-off)."""
+    return ((c3 * t + c2) * t + c1) * t + c0
+
+
+@numba.njit(cache=True)
 def _point(C, side, k, t, P, P1, P2):
     """Position and first and second derivatives at ``t`` of curve ``side``
     of pair ``k`` (monomial coefficients ``C`` ``(4, 3, 2, m)``), into
@@ -39,19 +46,18 @@ def _point(C, side, k, t, P, P1, P2):
     :func:`skfem_rod.contact.search.curve_point`."""
     for c in range(3):
         c0, c1, c2, c3 = C[0, c, side, k], C[1, c, side, k], C[2, c, side, k], C[3, c, side, k]
-        P[c] = ((c3 * t + c2) * t + c1) * t + c0
+        P[c] = _cubic(c0, c1, c2, c3, t)
         P1[c] = (3.0 * c3 * t + 2.0 * c2) * t + c1
         P2[c] = 6.0 * c3 * t + 2.0 * c2
 
 
 @numba.njit(cache=True)
 def _gap2(C, k, u, v):
-    """``|X(u) - Y(v)|^2`` of pair ``k`` (positions by
-    :func:`skfem_rod.contact.search.curve_position`)."""
+    """``|X(u) - Y(v)|^2`` of pair ``k``."""
     s = 0.0
     for c in range(3):
-        x = ((C[3, c, 0, k] * u + C[2, c, 0, k]) * u + C[1, c, 0, k]) * u + C[0, c, 0, k]
-        y = ((C[3, c, 1, k] * v + C[2, c, 1, k]) * v + C[1, c, 1, k]) * v + C[0, c, 1, k]
+        x = _cubic(C[0, c, 0, k], C[1, c, 0, k], C[2, c, 0, k], C[3, c, 0, k], u)
+        y = _cubic(C[0, c, 1, k], C[1, c, 1, k], C[2, c, 1, k], C[3, c, 1, k], v)
         s += (x - y) * (x - y)
     return s
 
@@ -165,7 +171,7 @@ def projection_newton(x, E, xi, iterations):
         for _ in range(iterations):
             n1 = f = gy2 = 0.0
             for c in range(3):
-                y = ((E[3, c, k] * t + E[2, c, k]) * t + E[1, c, k]) * t + E[0, c, k]
+                y = _cubic(E[0, c, k], E[1, c, k], E[2, c, k], E[3, c, k], t)
                 y1 = (E[4, c, k] * t + E[5, c, k]) * t + E[1, c, k]
                 y2 = E[6, c, k] * t + E[5, c, k]
                 g = y - x[c, k]
