@@ -104,6 +104,9 @@ def safeguarded_update(problem, at, inc, opts, bound, rn, slope=None):
     slope ``G_t . dy`` is above :data:`SLOPE_BACK` times ``|slope|`` has
     overshot the minimum of the energy along the update and is shortened to
     the minimum of the quadratic with the two slopes (a tenth to a half).
+    Every trial is evaluated from the contact search's memory at ``at``
+    (:meth:`~skfem_rod.problem.Problem.search_memory`), and where none is
+    taken the memory is left as it was.
     Returns ``((r, R, evaluation) or None, alpha, why)``."""
     r, R, lam = at
     dy, dl = inc
@@ -111,6 +114,7 @@ def safeguarded_update(problem, at, inc, opts, bound, rn, slope=None):
     if opts.line_search:
         alpha = spin_cap(dy, opts.max_spin_update)
     cap = opts.clearance_cap and problem.contact is not None
+    memory = problem.search_memory()        # the state's (Problem.search_memory)
     for _ in range(opts.max_backtracks + 1):
         try:
             r_t, R_t = problem.update(r, R, dy, alpha)
@@ -118,6 +122,7 @@ def safeguarded_update(problem, at, inc, opts, bound, rn, slope=None):
                 why = "the update would carry a strand through another"
                 alpha *= 0.5
                 continue
+            problem.restore_search(memory)
             ev_t = problem.evaluate(r_t, R_t, lam + alpha * dl)
         except ElementRotationError as err:
             why = str(err)
@@ -140,6 +145,7 @@ def safeguarded_update(problem, at, inc, opts, bound, rn, slope=None):
         elif rn_t <= bound:
             return (r_t, R_t, ev_t), alpha, ""
         alpha *= 0.5
+    problem.restore_search(memory)
     return None, alpha, why
 
 

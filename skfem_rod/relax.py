@@ -351,7 +351,9 @@ class GradientFlow:
         * a step that raises it is refused, and ``c`` grows by ``nu``
           (2, doubled at each refusal in a row): the step shortens and
           turns towards ``-W^{-1} G``, along which a small enough step
-          descends;
+          descends; the contact search's memory goes back to the state's
+          (:meth:`~skfem_rod.problem.Problem.search_memory`: otherwise the
+          residual at the state is the refused trial's search's and jumps);
         * a step that would leave an element chart or carry a strand
           through another (the clearance cap, always on here) is halved
           first (:func:`skfem_rod.newton.safeguarded_update`, no position
@@ -380,6 +382,7 @@ class GradientFlow:
         c_low = LM_C_LOW / opts.relax_dt
         remaining = np.zeros(problem.mesh.n_dofs) if prescribed is None else prescribed.copy()
         ev = problem.evaluate(r, R, lam)
+        memory = problem.search_memory()      # the state's: a refused trial puts it back
         history, its, steps, nu, refused = [], 0, 0, 2.0, 0
         # the energy's fall and the least residual norm so far, per iteration
         drop, drops, least = 0.0, [], []
@@ -434,6 +437,7 @@ class GradientFlow:
             if trial is not None and moving:
                 # the prescribed motion: taken as far as the safeguards allow
                 r, R, ev = trial
+                memory = problem.search_memory()
                 remaining = remaining * (1.0 - alpha)
                 remaining[np.abs(remaining) < 1e-300] = 0.0
                 continue
@@ -448,6 +452,7 @@ class GradientFlow:
                                       and change <= 1e-12 * scale * np.linalg.norm(d))
             if ok:
                 r, R, ev = trial
+                memory = problem.search_memory()
                 drop += change
                 steps += 1
                 still = still + 1 if update_size(problem, d) <= STILL_MOVE else 0
@@ -457,6 +462,7 @@ class GradientFlow:
                     rho = change / model if model < 0.0 else 1.0
                     c *= min(max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), rn_t / rn)
                 continue
+            problem.restore_search(memory)
             refused += 1
             if refused > MAX_REFUSALS:
                 why = (f"no descent after {MAX_REFUSALS} refusals in a row "

@@ -299,3 +299,80 @@ def test_a_flow_whose_steps_move_by_round_off_has_stalled(monkeypatch):
     flow, (r, R, lam, rep) = _crawling_flow(monkeypatch, 400)
     assert not rep.converged and not flow.stalled
     assert rep.flow_steps == 400 and "400 steps" in rep.reason
+
+
+def _pressed_hairpin_flow(monkeypatch):
+    """The Levenberg-Marquardt flow of a hairpin whose free leg a dead end
+    force presses onto the clamped one (contact with crossing pairs),
+    recording for every trial the state it starts from and the contact
+    search's memory before and after it."""
+    from test_contact import SEC, hairpin
+    eps = 0.02
+    rod = Rod(hairpin(eps, 0.2, leg=1.0), SEC, 16)
+    rod.clamp("start").add_force("end", [0.0, -5.0, 0.0]).enable_contact(radius=eps,
+                                                                          crossing=True)
+    problem = Problem(rod)
+    flow = relax.GradientFlow(problem)
+    plain = relax.safeguarded_update
+    trials = []
+
+    def record(problem_, at, inc, *args, **kw):
+        before = problem_.search_memory()
+        out = plain(problem_, at, inc, *args, **kw)
+        trials.append((at.r.copy(), before, problem_.search_memory()))
+        return out
+    monkeypatch.setattr(relax, "safeguarded_update", record)
+    out = flow.linearized(rod.r0.copy(), rod.R0.copy(), 1.0, make_options({}))
+    return problem, out, trials
+
+
+def _same_memory(a, b):
+    places = (a.crossing_places is None and b.crossing_places is None) or (
+        a.crossing_places is not None and b.crossing_places is not None
+        and np.array_equal(a.crossing_places, b.crossing_places))
+    return np.array_equal(a.last_master, b.last_master) and places
+
+
+def test_a_refused_step_leaves_the_search_memory_as_the_state_left_it(monkeypatch):
+    """The contact search remembers each slave's master element and the
+    held crossing pairs' places from one evaluation to the next.  A refused
+    step's trial changes that memory; the next try from the same state must
+    start from the state's memory again, or the residual at the state is
+    the refused trial's search's (the plectoneme's flow refused 20 steps at
+    a residual of 50.4 that was 14.6 a move of 1e-15 away).  Negative
+    control: without the restore, tries start from the refused trials'
+    memory."""
+    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
+    assert rep.converged, rep.reason
+    retries = [i for i in range(1, len(trials)) if np.array_equal(trials[i][0], trials[i - 1][0])]
+    changed = [i for i in retries if not _same_memory(trials[i - 1][1], trials[i - 1][2])]
+    assert changed, "no refused trial changed the memory: the test would not see the restore"
+    assert all(_same_memory(trials[i][1], trials[i - 1][1]) for i in retries)
+
+    monkeypatch.setattr(Problem, "restore_search", lambda self, memory: None)
+    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
+    retries = [i for i in range(1, len(trials)) if np.array_equal(trials[i][0], trials[i - 1][0])]
+    assert not all(_same_memory(trials[i][1], trials[i - 1][1]) for i in retries)
+
+
+def test_a_safeguarded_update_that_takes_no_trial_leaves_the_search_memory(monkeypatch):
+    """Every trial of one update is evaluated from the memory at its start,
+    and where none is taken (every residual above the bound) the memory is
+    as it was; evaluated directly, the last trial changes it."""
+    from skfem_rod.newton import safeguarded_update
+    from skfem_rod.problem import Increment, State
+    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
+    # from the pressed state (in contact) back towards the open start
+    problem.evaluate(r, R, 1.0)
+    memory = problem.search_memory()
+    inc = np.zeros(problem.mesh.n_dofs)
+    inc.reshape(-1, 6)[:, :3] = trials[0][0] - r
+    inc = problem.to_basis(inc)
+    evaluations = problem.calls["evaluate"]
+    opts = make_options({"max_backtracks": 1, "clearance_cap": False})   # trials at 1, 1/2
+    out, alpha, why = safeguarded_update(problem, State(r, R, 1.0), Increment(inc, 0.0),
+                                         opts, -1.0, 1.0)
+    assert out is None and problem.calls["evaluate"] == evaluations + 2
+    assert _same_memory(problem.search_memory(), memory)
+    problem.evaluate(*problem.update(r, R, inc, 0.5), 1.0)
+    assert not _same_memory(problem.search_memory(), memory)
