@@ -26,7 +26,6 @@ the free dofs and the forces the supports take up, never a load that acts
 on a supported dof (that one cannot decide convergence).
 """
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
