@@ -227,9 +227,10 @@ class SearchMemory(NamedTuple):
     (:meth:`Problem.search_memory`): the master element of each slave
     point (``-1``: none; kept by the next search within ``KEEP_MASTER`` of
     the contact tolerance, contact/search.py) and the places where the held
-    crossing pairs followed their minima (``Multipliers.crossing_places``)."""
+    crossing pairs followed their minima (``Multipliers.crossing_places``;
+    None: the held keys' own places)."""
     last_master: np.ndarray
-    crossing_places: np.ndarray
+    crossing_places: np.ndarray = None
 
 
 @dataclass
