@@ -620,9 +620,16 @@ def line_search(problem, at, inc, merit, opts, pairs=None):
     times the reference (plain Newton's safeguard: a stiff rod's first
     update can raise the residual, and the next one converges); otherwise
     the lowest trial below the reference, else none.
+
+    Every trial is evaluated from the contact search's memory at ``at``
+    (:meth:`~skfem_rod.problem.Problem.search_memory`, as in plain
+    Newton's :func:`~skfem_rod.newton.safeguarded_update`); the memory is
+    left as the returned trial's evaluation left it, or as it was where
+    none is returned.
     """
     lam0 = unknowns(problem, pairs)
     saved = problem.multipliers.copy()
+    memory = problem.search_memory()
     r, R, lam = at
     dy, dl = inc
     reference, weight = merit.reference, merit.weight
@@ -641,6 +648,9 @@ def line_search(problem, at, inc, merit, opts, pairs=None):
                 why = "the update would carry a strand through another"
                 alpha *= 0.5
                 continue
+            # the state's memory first: with crossing pairs, set_unknowns
+            # re-keys them, and the re-keyed pairs follow from their keys
+            problem.restore_search(memory)
             set_unknowns(problem, lam_t, pairs)
             # the first trial is usually taken: its tangent is the next
             # iteration's; halved trials get theirs once taken
@@ -669,8 +679,10 @@ def line_search(problem, at, inc, merit, opts, pairs=None):
             if merit.first and mt <= bound:
                 return trial
             if mt < reference and (best is None or mt < best[0]):
-                best = (mt, trial)
+                best = (mt, trial, problem.search_memory())
         alpha *= 0.5
     if best is not None:
+        problem.restore_search(best[2])
         return best[1]
+    problem.restore_search(memory)
     return None, alpha, why

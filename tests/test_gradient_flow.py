@@ -376,3 +376,29 @@ def test_a_safeguarded_update_that_takes_no_trial_leaves_the_search_memory(monke
     assert _same_memory(problem.search_memory(), memory)
     problem.evaluate(*problem.update(r, R, inc, 0.5), 1.0)
     assert not _same_memory(problem.search_memory(), memory)
+
+
+def test_the_generalized_newtons_line_search_that_takes_no_trial_leaves_the_search_memory(
+        monkeypatch):
+    """The same for the generalized Newton's merit line search
+    (skfem_rod/nonsmooth.py): its trials are evaluated from the memory at
+    its start, and where it returns none the memory is as it was."""
+    from skfem_rod import nonsmooth
+    from skfem_rod.problem import Increment, State
+    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
+    problem.evaluate(r, R, 1.0)
+    memory = problem.search_memory()
+    inc = np.zeros(problem.mesh.n_dofs)
+    inc.reshape(-1, 6)[:, :3] = trials[0][0] - r
+    inc = problem.to_basis(inc)
+    dl = np.zeros_like(nonsmooth.unknowns(problem))
+    evaluations = problem.calls["evaluate"]
+    opts = make_options({"max_backtracks": 1, "clearance_cap": False,   # trials at 1, 1/2
+                         "position_correction": False})
+    never = nonsmooth.Merit(last=1.0, reference=-1.0, scale=1.0, weight=1.0, first=False)
+    out, alpha, why = nonsmooth.line_search(problem, State(r, R, 1.0), Increment(inc, dl),
+                                            never, opts)
+    assert out is None and problem.calls["evaluate"] == evaluations + 2
+    assert _same_memory(problem.search_memory(), memory)
+    problem.evaluate(*problem.update(r, R, inc, 0.5), 1.0)
+    assert not _same_memory(problem.search_memory(), memory)

@@ -11,6 +11,7 @@ from skfem_rod import Rod, Section
 from skfem_rod import nonsmooth
 from skfem_rod.contact.crossing import crossing_pairs, crossing_work, min_distance
 from skfem_rod.problem import Problem
+from skfem_rod.options import make_options
 
 from test_core import _figure_eight, pressed_figure_eight
 from test_crossing import EPS as UNIT, _WIDE, two_strands
@@ -186,3 +187,39 @@ def test_generalized_jacobian_with_a_fading_crossing_pair(monkeypatch):
     # the centreline here, its dofs the rod's)
     term = ev.contact.crossing_fN[0] / cp.weight[0] * (ev.contact.crossing_dw @ dy)[0]
     assert abs(term) > 1e-3 * abs(fd_C[-1])
+
+
+def test_the_line_search_restores_the_search_memory_with_re_keyed_crossing_pairs():
+    """The generalized Newton's line search sets the trial's multipliers,
+    which re-keys the crossing pairs to those of the iterate, before it
+    evaluates each trial from the state's search memory
+    (skfem_rod/nonsmooth.py, line_search).  Here the held keys (two) and
+    the iterate's pairs (one) differ in number: the state's memory (the
+    held pairs' places, two rows) must be put back before the re-keying,
+    not after it (then the evaluation found two places for one key and
+    failed).  Where no trial is taken, the memory is as it was."""
+    from skfem_rod.problem import Increment, State
+    rod, eps = _pressed_figure_eight()
+    p = Problem(rod)
+    r, R = rod.r0, rod.R0
+    cp = p.evaluate(r, R, 0.0).contact.crossing
+    assert cp.size == 1
+    p.multipliers.rekey_crossing(np.vstack([cp.key, cp.key]), np.array([0.5, 0.5]))
+    p.evaluate(r, R, 0.0)
+    memory = p.search_memory()
+    assert memory.crossing_places.shape == (2, 2)
+    rng = np.random.default_rng(0)
+    dy = 1e-3 * eps * rng.normal(size=p.mesh.n_dofs)
+    dy[p.fixed] = 0.0
+    dl = np.zeros_like(nonsmooth.unknowns(p, cp))
+    opts = make_options({"max_backtracks": 1, "clearance_cap": False,
+                         "position_correction": False})
+    never = nonsmooth.Merit(last=1.0, reference=-1.0, scale=1.0, weight=1.0, first=False)
+    evaluations = p.calls["evaluate"]
+    out, alpha, why = nonsmooth.line_search(p, State(r, R, 0.0), Increment(dy, dl), never,
+                                            opts, cp)
+    assert out is None and p.calls["evaluate"] == evaluations + 2
+    now = p.search_memory()
+    assert np.array_equal(now.last_master, memory.last_master)
+    assert np.array_equal(now.crossing_places, memory.crossing_places)
+    assert len(p.multipliers.crossing_key) == 2
