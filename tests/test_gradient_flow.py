@@ -7,7 +7,7 @@ import pytest
 
 from skfem_rod import Rod, Section, geometry, relax
 from skfem_rod.options import make_options
-from skfem_rod.problem import Problem
+from skfem_rod.problem import Increment, Problem, State
 
 EI = np.pi * 0.01 ** 4 / 4 * 1e7
 
@@ -355,50 +355,46 @@ def test_a_refused_step_leaves_the_search_memory_as_the_state_left_it(monkeypatc
     assert not all(_same_memory(trials[i][1], trials[i - 1][1]) for i in retries)
 
 
-def test_a_safeguarded_update_that_takes_no_trial_leaves_the_search_memory(monkeypatch):
-    """Every trial of one update is evaluated from the memory at its start,
-    and where none is taken (every residual above the bound) the memory is
-    as it was; evaluated directly, the last trial changes it."""
-    from skfem_rod.newton import safeguarded_update
-    from skfem_rod.problem import Increment, State
-    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
-    # from the pressed state (in contact) back towards the open start
+def _refused_back_to_the_start(problem, r, R, start, line_search):
+    """From the pressed state ``(r, R)`` (in contact) back towards the open
+    ``start``: the memory at the state, and the update of ``line_search``
+    ``(problem, at, inc, opts) -> (trial, alpha, why)`` with trials at 1
+    and 1/2, both refused."""
     problem.evaluate(r, R, 1.0)
     memory = problem.search_memory()
     inc = np.zeros(problem.mesh.n_dofs)
-    inc.reshape(-1, 6)[:, :3] = trials[0][0] - r
+    inc.reshape(-1, 6)[:, :3] = start - r
     inc = problem.to_basis(inc)
     evaluations = problem.calls["evaluate"]
-    opts = make_options({"max_backtracks": 1, "clearance_cap": False})   # trials at 1, 1/2
-    out, alpha, why = safeguarded_update(problem, State(r, R, 1.0), Increment(inc, 0.0),
-                                         opts, -1.0, 1.0)
-    assert out is None and problem.calls["evaluate"] == evaluations + 2
-    assert _same_memory(problem.search_memory(), memory)
-    problem.evaluate(*problem.update(r, R, inc, 0.5), 1.0)
-    assert not _same_memory(problem.search_memory(), memory)
-
-
-def test_the_generalized_newtons_line_search_that_takes_no_trial_leaves_the_search_memory(
-        monkeypatch):
-    """The same for the generalized Newton's merit line search
-    (skfem_rod/nonsmooth.py): its trials are evaluated from the memory at
-    its start, and where it returns none the memory is as it was."""
-    from skfem_rod import nonsmooth
-    from skfem_rod.problem import Increment, State
-    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
-    problem.evaluate(r, R, 1.0)
-    memory = problem.search_memory()
-    inc = np.zeros(problem.mesh.n_dofs)
-    inc.reshape(-1, 6)[:, :3] = trials[0][0] - r
-    inc = problem.to_basis(inc)
-    dl = np.zeros_like(nonsmooth.unknowns(problem))
-    evaluations = problem.calls["evaluate"]
-    opts = make_options({"max_backtracks": 1, "clearance_cap": False,   # trials at 1, 1/2
+    opts = make_options({"max_backtracks": 1, "clearance_cap": False,
                          "position_correction": False})
-    never = nonsmooth.Merit(last=1.0, reference=-1.0, scale=1.0, weight=1.0, first=False)
-    out, alpha, why = nonsmooth.line_search(problem, State(r, R, 1.0), Increment(inc, dl),
-                                            never, opts)
+    out, alpha, why = line_search(problem, State(r, R, 1.0), inc, opts)
     assert out is None and problem.calls["evaluate"] == evaluations + 2
+    return memory, inc
+
+
+def _plain(problem, at, inc, opts):
+    from skfem_rod.newton import safeguarded_update
+    return safeguarded_update(problem, at, Increment(inc, 0.0), opts, -1.0, 1.0)
+
+
+def _generalized(problem, at, inc, opts):
+    from skfem_rod import nonsmooth
+    dl = np.zeros_like(nonsmooth.unknowns(problem))
+    never = nonsmooth.Merit(last=1.0, reference=-1.0, scale=1.0, weight=1.0, first=False)
+    return nonsmooth.line_search(problem, at, Increment(inc, dl), never, opts)
+
+
+@pytest.mark.parametrize("line_search", [_plain, _generalized], ids=["newton", "nonsmooth"])
+def test_a_line_search_that_takes_no_trial_leaves_the_search_memory(monkeypatch, line_search):
+    """Every trial of one update is evaluated from the memory at its start,
+    and where none is taken (every residual above the bound, or no merit
+    below the reference) the memory is as it was; evaluated directly, the
+    last trial changes it.  Plain Newton's safeguard
+    (``newton.safeguarded_update``) and the generalized Newton's merit line
+    search (``nonsmooth.line_search``)."""
+    problem, (r, R, lam, rep), trials = _pressed_hairpin_flow(monkeypatch)
+    memory, inc = _refused_back_to_the_start(problem, r, R, trials[0][0], line_search)
     assert _same_memory(problem.search_memory(), memory)
     problem.evaluate(*problem.update(r, R, inc, 0.5), 1.0)
     assert not _same_memory(problem.search_memory(), memory)
