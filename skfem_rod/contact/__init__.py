@@ -91,10 +91,12 @@ class ContactOptions:
         damped steps (docs/knot.md).  Measured again on 2026-11-30
         (benchmarks/RESULTS_plectoneme.md): past the plectoneme's fold,
         where the penalty reaches its cap in every step and the nominal
-        one at the next step's start lets the contact sink by 0.1-0.2
+        one at the next step's start lets the contact sink by 0.09-0.18
         eps, it carries the 200-element winding to 3.06 turns in 112 s
-        (without it: 1.9 turns in 900 s); the frictional knot's cycle took
-        4.1 times as long (213 s).  The converged state is the nominal
+        (without it: 1.875 turns in 900 s); the knot's cycles took 24.5 s
+        without friction (11.7-19 s without the option: no longer the
+        saving above) and 213 s with ``gamma_T = 0.2`` (52.6 s), so it
+        stays off.  The converged state is the nominal
         penalty's to the tolerances either way (the reported state, the
         stability checks and the next step's predictor see the nominal
         penalty).
