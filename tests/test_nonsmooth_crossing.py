@@ -10,8 +10,8 @@ import pytest
 from skfem_rod import Rod, Section
 from skfem_rod import nonsmooth
 from skfem_rod.contact.crossing import crossing_pairs, crossing_work, min_distance
-from skfem_rod.problem import Problem
 from skfem_rod.options import make_options
+from skfem_rod.problem import Increment, Problem, State
 
 from test_core import _figure_eight, pressed_figure_eight
 from test_crossing import EPS as UNIT, _WIDE, two_strands
@@ -198,7 +198,6 @@ def test_the_line_search_restores_the_search_memory_with_re_keyed_crossing_pairs
     held pairs' places, two rows) must be put back before the re-keying,
     not after it (then the evaluation found two places for one key and
     failed).  Where no trial is taken, the memory is as it was."""
-    from skfem_rod.problem import Increment, State
     rod, eps = _pressed_figure_eight()
     p = Problem(rod)
     r, R = rod.r0, rod.R0
