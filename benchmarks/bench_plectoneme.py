@@ -187,7 +187,7 @@ def by_kind(log):
     return out
 
 
-def plot(runs, path):
+def plot(runs, path, title=None):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -223,7 +223,8 @@ def plot(runs, path):
     ax[1].set_ylabel("end torque $M_x$")
     for a in ax:
         a.legend(fontsize=7)
-    fig.suptitle("plectoneme (L = 1, r = 0.025, T = 10 EI/L$^2$) by implicit pseudo-dynamics")
+    fig.suptitle(title or "plectoneme (L = 1, r = 0.025, T = 10 EI/L$^2$) by implicit "
+                 "pseudo-dynamics")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -1,0 +1,135 @@
+"""The smooth node barrier of skfem_rod.contact.barrier: the scalar
+barrier's smoothness, finite-difference checks of the pair energy's
+gradient and Hessian, the exclusion, and the step bound (continuous
+collision detection) exact on straight paths."""
+import numpy as np
+import pytest
+
+from skfem_rod.contact.barrier import (Barrier, barrier_work, node_pairs, potential,
+                                       step_bound)
+
+
+def test_potential_derivatives_and_c2_at_the_width():
+    w, k = 0.3, 2.0
+    g = np.linspace(0.01, 0.29, 15)
+    h = 1e-6
+    b, b1, b2 = potential(g, w, k)
+    bp, b1p, _ = potential(g + h, w, k)
+    bm, b1m, _ = potential(g - h, w, k)
+    assert np.allclose((bp - bm) / (2 * h), b1, rtol=1e-7, atol=1e-9)
+    assert np.allclose((b1p - b1m) / (2 * h), b2, rtol=1e-6, atol=1e-7)
+    # C2 at the width: b, b', b'' all vanish there
+    assert np.allclose(potential(np.array([w]), w, k), 0.0, atol=1e-14)
+    # repulsive and convex inside, unbounded at contact
+    assert np.all(b > 0) and np.all(b1 < 0) and np.all(b2 > 0)
+    tiny = np.array([1e-12, 1e-60, 1e-150])
+    bt = potential(tiny, w, k)[0]
+    assert np.all(np.diff(bt) > 0)
+    assert np.allclose(bt / np.log(w / tiny), k * w ** 2, rtol=1e-10)   # ~ k w^2 ln(w / g)
+
+
+def _strands(seed=3):
+    """Two crossing polylines (nodes 0.01 apart in arclength), the second
+    lifted so that some node pairs sit inside the barrier's width."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(-0.1, 0.1, 21)
+    a = np.stack([t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    b = np.stack([0.3 * t, t, np.full_like(t, 0.05)], axis=1)
+    x = np.concatenate([a, b]) + 1e-4 * rng.standard_normal((42, 3))
+    s = np.concatenate([t + 0.1, t + 1.1])        # the strands are far apart along the rod
+    return x, s
+
+
+def test_gradient_and_hessian_match_finite_differences():
+    x, s = _strands()
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    w0 = barrier_work(x, s, bw, dofs=3)
+    assert w0.active > 0 and np.isfinite(w0.energy) and 0 < w0.min_gap < bw.width
+    H = w0.hessian.toarray()
+    assert np.allclose(H, H.T)
+    rng = np.random.default_rng(7)
+    v = rng.standard_normal(x.shape)
+    h = 1e-7
+    ep = barrier_work(x + h * v, s, bw, hessian=False).energy
+    em = barrier_work(x - h * v, s, bw, hessian=False).energy
+    slope = float(np.sum(w0.gradient * v))
+    assert abs((ep - em) / (2 * h) - slope) <= 1e-6 * max(abs(slope), 1.0)
+    gp = barrier_work(x + h * v, s, bw, hessian=False).gradient
+    gm = barrier_work(x - h * v, s, bw, hessian=False).gradient
+    fd = ((gp - gm) / (2 * h)).ravel()
+    Hv = H @ v.ravel()
+    assert np.linalg.norm(fd - Hv) <= 1e-5 * np.linalg.norm(Hv)
+    # the positive semi-definite variant drops a negative part only
+    Hp = barrier_work(x, s, bw, dofs=3, psd=True).hessian.toarray()
+    assert np.linalg.eigvalsh(Hp).min() > -1e-9 * np.abs(Hp).max()
+    assert np.linalg.eigvalsh(H - Hp).max() < 1e-9 * np.abs(Hp).max()
+
+
+def test_hessian_layout_with_six_dofs_per_node():
+    x, s = _strands()
+    bw = Barrier(distance=0.048, width=0.01, stiffness=50.0, exclusion=0.05)
+    H3 = barrier_work(x, s, bw, dofs=3).hessian.toarray()
+    H6 = barrier_work(x, s, bw, dofs=6).hessian.toarray()
+    pos = (np.arange(6 * len(x)) % 6) < 3
+    assert np.allclose(H6[np.ix_(pos, pos)], H3)
+    assert not np.any(H6[~pos]) and not np.any(H6[:, ~pos])
+
+
+def test_pairs_closer_than_the_exclusion_never_touch():
+    # a hairpin: nodes along a tight U are close in space, some also in arclength
+    th = np.linspace(0, np.pi, 40)
+    x = np.stack([0.03 * np.cos(th), 0.03 * np.sin(th), np.zeros_like(th)], axis=1)
+    s = 0.03 * th
+    pr = node_pairs(x, s, 0.07, exclusion=0.05)
+    assert pr.size > 0
+    assert np.all(np.abs(s[pr[:, 0]] - s[pr[:, 1]]) >= 0.05)
+    assert node_pairs(x, s, 0.07, exclusion=1.0).shape == (0, 2)
+
+
+def test_overlapping_nodes_have_infinite_energy():
+    x, s = _strands()
+    bw = Barrier(distance=0.2, width=0.01, stiffness=1.0, exclusion=0.05)
+    w = barrier_work(x, s, bw)
+    assert w.energy == np.inf and w.min_gap < 0
+
+
+def test_step_bound_is_the_first_contact_on_straight_paths():
+    bw = Barrier(distance=0.05, width=0.001, stiffness=1.0, exclusion=0.5)
+    x = np.array([[0.0, 0.0, 0.0], [0.2, 0.03, 0.0]])
+    s = np.array([0.0, 1.0])
+    dx = np.array([[0.0, 0.0, 0.0], [-0.4, 0.0, 0.0]])
+    # |(0.2 - 0.4 t, 0.03)| = 0.05 first at 0.4 t = 0.2 - 0.04, t = 0.4
+    assert step_bound(x, dx, s, bw, fraction=1.0) == pytest.approx(0.4, rel=1e-12)
+    assert step_bound(x, dx, s, bw, fraction=0.8) == pytest.approx(0.32, rel=1e-12)
+    # moving apart, or passing wide, is not bounded
+    assert step_bound(x, -dx, s, bw) == 1.0
+    x2 = x + np.array([[0.0, 0.0, 0.0], [0.0, 0.1, 0.0]])
+    assert step_bound(x2, dx, s, bw) == 1.0
+
+
+def test_step_bound_keeps_random_moves_outside_contact():
+    rng = np.random.default_rng(11)
+    x, s = _strands()
+    bw = Barrier(distance=0.045, width=0.002, stiffness=1.0, exclusion=0.05)
+    assert barrier_work(x, s, bw, hessian=False).min_gap > 0
+    for _ in range(20):
+        dx = 0.05 * rng.standard_normal(x.shape)
+        a = step_bound(x, dx, s, bw, fraction=0.8)
+        assert 0 < a <= 1
+        for t in np.linspace(0, a, 9):
+            assert barrier_work(x + t * dx, s, bw, hessian=False).min_gap > 0
+
+
+def test_for_nodes_sets_the_contact_distance_from_the_spacing():
+    s = np.random.default_rng(5).permutation(np.linspace(0, 1, 301))     # any order
+    bw = Barrier.for_nodes(s, radius=0.025, width=0.02, force=1.0)
+    a = 1 / 300
+    assert bw.distance == pytest.approx(0.05 + a ** 2 / (16 * 0.025), rel=1e-6)
+    assert bw.width == pytest.approx(5e-4)
+    assert -potential(np.array([bw.width / 2]), bw.width, bw.stiffness)[1][0] == \
+        pytest.approx(1.0, rel=1e-12)
+    assert bw.exclusion == pytest.approx(np.pi * 0.025)
+    with pytest.raises(ValueError, match="width"):
+        Barrier.for_nodes(s, radius=0.025, width=-1.0)
+    with pytest.raises(ValueError, match="radius"):
+        Barrier.for_nodes(s, radius=float("nan"))
