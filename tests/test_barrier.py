@@ -5,8 +5,8 @@ collision detection) exact on straight paths."""
 import numpy as np
 import pytest
 
-from skfem_rod.contact.barrier import (Barrier, barrier_work, node_pairs, potential,
-                                       step_bound)
+from skfem_rod.contact.barrier import (Barrier, barrier_work, friction_lag, friction_work,
+                                       node_pairs, potential, step_bound)
 
 
 def test_potential_derivatives_and_c2_at_the_width():
@@ -121,10 +121,12 @@ def test_step_bound_keeps_random_moves_outside_contact():
 
 
 def test_for_nodes_sets_the_contact_distance_from_the_spacing():
+    """D covers straight strands crossing at right angles with both
+    strands' nodes half a spacing from the crossing."""
     s = np.random.default_rng(5).permutation(np.linspace(0, 1, 301))     # any order
     bw = Barrier.for_nodes(s, radius=0.025, width=0.02, force=1.0)
     a = 1 / 300
-    assert bw.distance == pytest.approx(0.05 + a ** 2 / (16 * 0.025), rel=1e-6)
+    assert bw.distance == pytest.approx(0.05 + a ** 2 / (8 * 0.025), rel=1e-6)
     assert bw.width == pytest.approx(5e-4)
     assert -potential(np.array([bw.width / 2]), bw.width, bw.stiffness)[1][0] == \
         pytest.approx(1.0, rel=1e-12)
@@ -133,3 +135,104 @@ def test_for_nodes_sets_the_contact_distance_from_the_spacing():
         Barrier.for_nodes(s, radius=0.025, width=-1.0)
     with pytest.raises(ValueError, match="radius"):
         Barrier.for_nodes(s, radius=float("nan"))
+
+
+# -- friction at the node pairs ------------------------------------------------
+
+def _rotations(n, seed):
+    from scipy.spatial.transform import Rotation
+    return Rotation.random(n, random_state=seed).as_matrix()
+
+
+def _spin(R, w):
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_rotvec(w).as_matrix() @ R
+
+
+def _friction_case(seed=3):
+    x, s = _strands(seed)
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    R0 = _rotations(len(x), seed)
+    rng = np.random.default_rng(seed + 1)
+    x0 = x - 3e-3 * rng.standard_normal(x.shape)          # the step's start
+    R = np.stack([_spin(R0[k], 0.05 * rng.standard_normal(3)) for k in range(len(x))])
+    lag = friction_lag(x, R, x0, R0, s, bw)
+    return x, R, lag
+
+
+def test_friction_gradient_matches_finite_differences_in_positions_and_spins():
+    x, R, lag = _friction_case()
+    assert lag.pairs.shape[0] > 0 and np.all(lag.force > 0)
+    for eps_v in (1e-2, 1e-4):               # mostly sticking / mostly slipping
+        w = friction_work(x, R, lag, mu=0.3, eps_v=eps_v)
+        rng = np.random.default_rng(9)
+        v = rng.standard_normal((len(x), 6))
+        h = 1e-7
+
+        def energy(t):
+            Rt = np.stack([_spin(R[k], t * v[k, 3:]) for k in range(len(x))])
+            return friction_work(x + t * v[:, :3], Rt, lag, 0.3, eps_v, hessian=False).energy
+        fd = (energy(h) - energy(-h)) / (2 * h)
+        slope = float(np.sum(w.gradient * v))
+        assert abs(fd - slope) <= 1e-6 * max(abs(slope), 1e-3)
+        # the positions' block of the Hessian is exact
+        vp = np.zeros_like(v)
+        vp[:, :3] = v[:, :3]
+        gp = friction_work(x + h * v[:, :3], R, lag, 0.3, eps_v, hessian=False).gradient
+        gm = friction_work(x - h * v[:, :3], R, lag, 0.3, eps_v, hessian=False).gradient
+        fdH = ((gp - gm) / (2 * h)).ravel()
+        Hv = w.hessian @ vp.ravel()
+        pos = (np.arange(Hv.size) % 6) < 3
+        assert np.linalg.norm(fdH[pos] - Hv[pos]) <= 1e-5 * np.linalg.norm(Hv[pos])
+        H = w.hessian.toarray()
+        assert np.allclose(H, H.T)
+        assert np.linalg.eigvalsh(H).min() > -1e-9 * np.abs(H).max()
+
+
+def test_friction_forces_obey_coulomb():
+    """Each pair's force is at most mu lambda, along -slip, and equal to it
+    where the pair slips by eps_v or more."""
+    x, R, lag = _friction_case(5)
+    mu = 0.3
+    eps_v = float(np.median(friction_work(x, R, lag, mu, 1.0).slip))   # half stick, half slip
+    w = friction_work(x, R, lag, mu, eps_v)
+    f = np.linalg.norm(w.force, axis=1)
+    bound = mu * lag.force
+    assert np.all(f <= bound * (1 + 1e-12))
+    slipping = w.slip >= eps_v
+    assert slipping.any() and (~slipping).any()
+    assert np.allclose(f[slipping], bound[slipping], rtol=1e-12)
+    # along -slip, in the plane normal to the lagged normal
+    assert np.allclose(np.einsum("ka,ka->k", w.force, lag.normal), 0.0, atol=1e-12 * bound.max())
+
+
+def test_a_rigid_motion_of_the_step_gives_no_slip():
+    """Translate and rotate the whole configuration rigidly from the step's
+    start: the surface points move together, no slip, no friction."""
+    x0, s = _strands(2)
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    R0 = _rotations(len(x0), 2)
+    Q = _spin(np.eye(3), np.array([0.3, -0.4, 0.2]))           # 0.54 rad
+    x = x0 @ Q.T + np.array([0.1, -0.2, 0.05])
+    R = np.einsum("ab,kbc->kac", Q, R0)
+    lag = friction_lag(x, R, x0, R0, s, bw)
+    w = friction_work(x, R, lag, mu=0.3, eps_v=1e-4)
+    assert lag.pairs.shape[0] > 0
+    assert w.slip.max() < 1e-14
+
+
+def test_crossing_strands_keep_their_distance_where_the_nodes_miss_the_crossing():
+    """Two straight strands crossing at right angles, nodes half a spacing
+    from the crossing on both: at the node barrier's contact distance the
+    centrelines are exactly 2 eps apart."""
+    eps, a = 0.025, 0.01
+    D = Barrier.for_nodes(np.arange(0, 1.0 + a / 2, a), eps).distance
+    t = (np.arange(-10, 10) + 0.5) * a
+    d = np.sqrt(D ** 2 - 2 * (a / 2) ** 2)          # the nearest nodes exactly D apart
+    x = np.concatenate([np.c_[t, 0 * t, 0 * t], np.c_[0 * t, t, d + 0 * t]])
+    s = np.concatenate([t + 1.0, t + 3.0])
+    pr = node_pairs(x, s, 1.0, exclusion=0.5)
+    dist = np.linalg.norm(x[pr[:, 0]] - x[pr[:, 1]], axis=1)
+    assert dist.min() == pytest.approx(D, rel=1e-12)
+    assert d == pytest.approx(2 * eps, rel=1e-3)
+    assert d >= 2 * eps

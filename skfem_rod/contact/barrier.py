@@ -18,13 +18,20 @@ energy, and a line search that keeps the energy finite (with
 The total energy stays smooth, so Newton on it sees no active-set switch,
 no projection jump and no multiplier update.
 
-*Contact distance.*  The nodes sample the curve at spacing ``a``; between
-two parallel strands at distance ``2 eps`` the nearest nodes are farther
-apart by up to ``a^2 / (16 eps)`` (nodes half a spacing out of step).  The
-node spheres touch at ``D = 2 eps + a^2 / (16 eps)`` (:meth:`Barrier.for_nodes`):
-the centrelines then keep ``2 eps`` where the nodes are out of step and
-stand off by that much where they are in step (1.1e-3 eps at 100 elements
-of the plectoneme, 2.8e-4 eps at 200).
+*Contact distance.*  The nodes sample the curve at spacing ``a``; where two
+straight strands cross at distance ``2 eps``, the nearest nodes can be
+farther apart by up to ``a^2 / (8 eps)`` (both strands' nodes half a
+spacing away from the crossing; ``a^2 / (16 eps)`` for parallel strands).
+The node spheres touch at ``D = 2 eps + a^2 / (8 eps)``
+(:meth:`Barrier.for_nodes`): the centrelines keep ``2 eps`` at any
+crossing angle where the strands are straight between nodes, and stand
+off by up to that much where the nodes are in step (2.2e-3 eps at 100
+elements of the plectoneme, 5.6e-4 eps at 200; a tenth of the radius at
+36 elements of a rod ten times longer, too coarse for this model: the
+node spacing must stay well below the radius).  Where strands curve
+between nodes, the true distance can dip by the sag, at most
+``a^2 / (8 eps)`` again; the callers measure it
+(:func:`skfem_rod.contact.crossing.min_distance`).
 
 *Width and stiffness.*  ``g_hat`` (default 0.02 eps) bounds how far apart
 touching strands stand; ``kappa`` is set so that a pair at ``g_hat / 2``
@@ -63,7 +70,7 @@ class Barrier:
     @classmethod
     def for_nodes(cls, s, radius, width=0.02, force=1.0, exclusion=None):
         """The barrier for nodes at arclengths ``s`` (any order) of a rod of
-        contact radius ``radius``: ``D = 2 radius + a^2 / (16 radius)``
+        contact radius ``radius``: ``D = 2 radius + a^2 / (8 radius)``
         with ``a`` the largest node spacing, ``g_hat = width radius``, the
         stiffness from ``force`` (module doc), ``exclusion`` default
         ``pi radius`` (:mod:`.search`)."""
@@ -76,7 +83,7 @@ class Barrier:
             raise ValueError(f"force must be a finite number > 0, not {force!r}")
         a = float(np.diff(np.sort(np.asarray(s, float))).max(initial=0.0))
         ghat = width * radius
-        return cls(distance=2 * radius + a ** 2 / (16 * radius), width=ghat,
+        return cls(distance=2 * radius + a ** 2 / (8 * radius), width=ghat,
                    stiffness=force / (HALF_WIDTH_FORCE * ghat),
                    exclusion=np.pi * radius if exclusion is None else float(exclusion))
 
@@ -181,3 +188,180 @@ def step_bound(x, dx, s, barrier, fraction=0.8):
     t[hit] = 2 * C[hit] / (-B[hit] + np.sqrt(disc[hit]))
     t[t < 0] = np.inf
     return float(min(1.0, fraction * t.min(initial=np.inf)))
+
+
+# -- friction ---------------------------------------------------------------
+#
+# Coulomb friction at the node pairs as in IPC (Li et al. 2020, sec. 5): the
+# normal force, the contact normal and the pairs are lagged (taken at a
+# configuration of the step and held while Newton solves), and the friction
+# is the gradient of the dissipation potential
+#
+#     D = sum_k mu lambda_k f0(|u_k|),
+#
+# u_k the slip over the step of the pair's two surface points (the points of
+# the two sections facing each other at the lag, carried with the sections'
+# rotations: exact for finite rotations), projected on the plane normal to
+# the lagged normal; f0 smooths |u| below eps_v (f0' = f1: 2y/eps_v -
+# y^2/eps_v^2 below eps_v, 1 above).  At a fixed point of the lag the
+# friction force of a pair is mu lambda f1(|u|) along -u: at most mu lambda,
+# equal to it where the pair slips by eps_v or more (Coulomb's law, the
+# stick state regularized by a slip of at most eps_v, as the paper's
+# tangential penalty regularizes it).
+
+
+@dataclass(frozen=True)
+class FrictionLag:
+    """The lagged quantities of the node pairs' friction (one row per pair)."""
+    pairs: np.ndarray     # (k, 2) node indices
+    normal: np.ndarray    # (k, 3) unit (x_i - x_j) / |x_i - x_j| at the lag
+    force: np.ndarray     # (k,) normal force -b'(g) >= 0 at the lag
+    arm_i: np.ndarray     # (k, 3) the contact point on section i, in its body frame
+    arm_j: np.ndarray     # (k, 3) the contact point on section j, in its body frame
+    start_i: np.ndarray   # (k, 3) that point of section i at the step's start
+    start_j: np.ndarray   # (k, 3)
+
+
+def _pair_lookup(pairs, n_nodes, keys_of):
+    """Index into ``keys_of`` (a ``(k, 2)`` pair array) of each row of
+    ``pairs``, -1 where it has none."""
+    key = pairs[:, 0] * n_nodes + pairs[:, 1]
+    old = keys_of[:, 0] * n_nodes + keys_of[:, 1]
+    if old.size == 0:
+        return np.full(key.size, -1)
+    order = np.argsort(old)
+    at = np.clip(np.searchsorted(old[order], key), 0, old.size - 1)
+    return np.where(old[order][at] == key, order[at], -1)
+
+
+def lag_change(a, b, n_nodes):
+    """The largest change of a node pair's normal force between the lags
+    ``a`` and ``b`` (a pair missing from one counts with 0 there)."""
+    at = _pair_lookup(b.pairs, n_nodes, a.pairs)
+    was = np.zeros(b.force.size)
+    was[at >= 0] = a.force[at[at >= 0]]
+    gone = np.ones(a.pairs.shape[0], bool)
+    gone[at[at >= 0]] = False
+    return float(max(np.abs(b.force - was).max(initial=0.0), a.force[gone].max(initial=0.0)))
+
+
+def friction_lag(x, R, x0, R0, s, barrier, previous=None, relax=1.0, held=None):
+    """The :class:`FrictionLag` at the configuration ``(x, R)`` of a step
+    that started at ``(x0, R0)`` (node positions ``(n, 3)``, rotations
+    ``(n, 3, 3)``): the pairs inside the barrier's width, their normal
+    forces and normals there, and the contact point -- the midpoint of the
+    two nodes, on the touching surfaces to within the barrier's width --
+    as a material point of each of the two sections.  The two material
+    points coincide at the lag, so a rigid motion of the step (any
+    rotation) gives them the same displacement: no slip.
+
+    With a ``previous`` lag, the normal forces are relaxed towards it:
+    ``relax lambda + (1 - relax) lambda_previous`` per node pair (0 for a
+    pair the previous lag did not have); a fixed point is the same, and a
+    lag that alternates between two states settles.
+
+    ``held``: the node pairs (``(k, 2)``) in contact at the step's start.
+    A pair that is not among them came into contact during the step, and
+    its two points have no common history before that: their slip is
+    measured from where they met -- the first lag of the step that has
+    them (``previous`` carries it from lag to lag); from the next step on
+    they are held and slip from the step's start.  Without ``held`` every
+    pair slips from the step's start (``x0``, ``R0``)."""
+    bw = barrier
+    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion)
+    d = x[pr[:, 0]] - x[pr[:, 1]]
+    dist = np.linalg.norm(d, axis=1)
+    keep = (dist > bw.distance) & (dist < bw.distance + bw.width)
+    pr, d, dist = pr[keep], d[keep], dist[keep]
+    n = d / dist[:, None]
+    lam = -potential(dist - bw.distance, bw.width, bw.stiffness)[1]
+    i, j = pr[:, 0], pr[:, 1]
+    if previous is not None and relax != 1.0:
+        at = _pair_lookup(pr, x.shape[0], previous.pairs)
+        was = np.zeros_like(lam)
+        was[at >= 0] = previous.force[at[at >= 0]]
+        lam = relax * lam + (1.0 - relax) * was
+    half = 0.5 * dist[:, None] * n
+    arm_i = np.einsum("kba,kb->ka", R[i], -half)             # R_i^T (x_mid - x_i)
+    arm_j = np.einsum("kba,kb->ka", R[j], half)
+    start_i = x0[i] + np.einsum("kab,kb->ka", R0[i], arm_i)
+    start_j = x0[j] + np.einsum("kab,kb->ka", R0[j], arm_j)
+    if held is not None:
+        new = _pair_lookup(pr, x.shape[0], np.asarray(held).reshape(-1, 2)) < 0
+        mid = 0.5 * (x[i] + x[j])
+        start_i[new] = mid[new]
+        start_j[new] = mid[new]
+        if previous is not None:
+            # met at an earlier lag of this step: the points where they met
+            at = _pair_lookup(pr, x.shape[0], previous.pairs)
+            met = new & (at >= 0)
+            k = at[met]
+            arm_i[met], arm_j[met] = previous.arm_i[k], previous.arm_j[k]
+            start_i[met], start_j[met] = previous.start_i[k], previous.start_j[k]
+    return FrictionLag(pr, n, lam, arm_i, arm_j, start_i, start_j)
+
+
+def _cross_matrix(c):
+    """``[c]_x`` per row: ``(k, 3, 3)`` with ``[c]_x v = c x v``."""
+    z = np.zeros(c.shape[0])
+    return np.stack([np.stack([z, -c[:, 2], c[:, 1]], 1),
+                     np.stack([c[:, 2], z, -c[:, 0]], 1),
+                     np.stack([-c[:, 1], c[:, 0], z], 1)], 1)
+
+
+class FrictionWork(NamedTuple):
+    """The friction potential at one configuration."""
+    energy: float
+    gradient: np.ndarray      # (n, 6): positions, then spins
+    hessian: object           # sparse (6 n, 6 n), or None
+    force: np.ndarray         # (k, 3) friction force on node i's section (-dD/du)
+    slip: np.ndarray          # (k,) |u|
+
+
+def friction_work(x, R, lag, mu, eps_v, hessian=True):
+    """The dissipation potential ``D`` of :class:`FrictionLag` ``lag`` at
+    ``(x, R)`` (module notes above), friction coefficient ``mu``, slip
+    smoothing ``eps_v``: energy, gradient and Hessian over the 6 dofs per
+    node (positions; spatial spins, ``R <- exp(w) R``).  The Hessian is
+    the exact one of ``D`` in the surface points' slip times their
+    Jacobian on both sides (positive semi-definite); the second derivative
+    of the rotation acting on the arm is left out."""
+    n_nodes = x.shape[0]
+    grad = np.zeros((n_nodes, 6))
+    k = lag.pairs.shape[0]
+    if k == 0 or mu == 0:
+        H = sp.csc_matrix((6 * n_nodes, 6 * n_nodes)) if hessian else None
+        return FrictionWork(0.0, grad, H, np.zeros((k, 3)), np.zeros(k))
+    i, j = lag.pairs[:, 0], lag.pairs[:, 1]
+    c_i = np.einsum("kab,kb->ka", R[i], lag.arm_i)
+    c_j = np.einsum("kab,kb->ka", R[j], lag.arm_j)
+    delta = (x[i] + c_i - lag.start_i) - (x[j] + c_j - lag.start_j)
+    nrm = lag.normal
+    u = delta - np.einsum("ka,ka->k", delta, nrm)[:, None] * nrm
+    y = np.linalg.norm(u, axis=1)
+    small = y < eps_v
+    f0 = np.where(small, -y ** 3 / (3 * eps_v ** 2) + y ** 2 / eps_v + eps_v / 3, y)
+    ratio = np.where(small, 2 / eps_v - y / eps_v ** 2, 1 / np.maximum(y, 1e-300))  # f1 / y
+    ml = mu * lag.force
+    phi = (ml * ratio)[:, None] * u                        # dD/d(delta), in the plane
+    np.add.at(grad[:, :3], i, phi)
+    np.add.at(grad[:, :3], j, -phi)
+    np.add.at(grad[:, 3:], i, np.cross(c_i, phi))
+    np.add.at(grad[:, 3:], j, -np.cross(c_j, phi))
+    H = None
+    if hessian:
+        P = np.eye(3) - nrm[:, :, None] * nrm[:, None, :]
+        uh = u / np.maximum(y, 1e-300)[:, None]           # the slip's direction (0 at rest)
+        # (f1' y - f1) / y^3 u u^T = c (u/y)(u/y)^T, c = -y / eps_v^2 or -1 / y
+        c = np.where(small, -y / eps_v ** 2, -1 / np.maximum(y, eps_v))
+        Hu = ml[:, None, None] * (ratio[:, None, None] * np.eye(3)
+                                  + c[:, None, None] * uh[:, :, None] * uh[:, None, :])
+        Hd = P @ Hu @ P
+        J = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -_cross_matrix(c_i),
+                            -np.broadcast_to(np.eye(3), (k, 3, 3)), _cross_matrix(c_j)], axis=2)
+        blk = np.einsum("kai,kab,kbj->kij", J, Hd, J)      # (k, 12, 12)
+        dof = np.concatenate([i[:, None] * 6 + np.arange(6), j[:, None] * 6 + np.arange(6)], 1)
+        rows = np.repeat(dof, 12, axis=1).ravel()
+        cols = np.tile(dof, (1, 12)).ravel()
+        H = sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(6 * n_nodes, 6 * n_nodes)).tocsc()
+    return FrictionWork(float(np.sum(ml * f0)), grad, H, -phi, y)

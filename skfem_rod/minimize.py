@@ -1,0 +1,299 @@
+r"""Load steps by Newton on the total energy, with the smooth node barrier of
+:mod:`skfem_rod.contact.barrier` for contact and its lagged Coulomb friction:
+the experiment of issue 13 (docs/contact-solve.md, "A smooth barrier between
+nodes"; ``benchmarks/bench_plectoneme_barrier.py``).  Not the paper's
+augmented-Lagrangian contact, and not yet an option of ``Rod.solve``.
+
+Where every load is dead (forces, no moments, no followers) and motions are
+prescribed, an equilibrium is a stationary point of
+
+    E(y) = U_rod(y) - f . (x - x_0) + sum over node pairs b(g_ij)  [+ D(y)]
+
+(``D`` the friction's dissipation potential at the lagged normal forces).
+One step, in plain sight::
+
+    predictor: the last step's increment again (secant), cut by the step
+        bound; the rest of the prescribed motion applied
+    repeat (friction: until the lag is a fixed point, at most max_lags):
+        lag the friction at the state (pairs, normal forces, normals)
+        Newton on E (+ D):
+            converged when |G_free| <= rtol * force scale
+            solve (K + sigma diag|K|) dy = -G, sigma the least shift
+                (0, then 1e-6 times 10^k) making the matrix positive
+                definite (its inertia from a symmetric-mode LU's pivots);
+                the next iteration starts from a tenth of it
+            alpha: at most max_spin per node, at most `fraction` of the way
+                to the first node-pair contact (continuous collision
+                detection on the positions' straight paths)
+            halve alpha until E falls by the Armijo fraction of the slope
+                (below the energy's round-off: until the residual falls);
+                after `halvings` halvings compute the update again with the
+                shift raised a hundredfold, at most `retries` times
+        (the lags' solves to lag_rtol; the one at the settled lag to rtol)
+        the lag is a fixed point when no pair's normal force lagged at the
+            solution differs from the one solved with by more than lag_tol
+            times the largest (pairs that met during the step stick where
+            they met: friction_lag's held); once a lag's change is above
+            LAG_STALL times the last, the lagged forces are relaxed
+            (lag_relax) for the rest of the step
+"""
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .contact.barrier import (Barrier, FrictionLag, barrier_work, friction_lag,
+                              friction_work, lag_change, step_bound)
+from .kinematics import ElementRotationError
+from .problem import Problem
+
+__all__ = ["EnergyOptions", "EnergySolve", "StepReport"]
+
+#: a lag whose largest change of a normal force is above this fraction of
+#: the last one's is relaxed (``EnergyOptions.lag_relax``) for the rest of
+#: the step: unrelaxed, the plectoneme's lag alternated between two states
+#: (51 and 54 pairs, the end at 0.1921 and 0.1896) at 2.125 turns
+LAG_STALL = 0.7
+
+
+@dataclass(frozen=True)
+class EnergyOptions:
+    """Options of :class:`EnergySolve` (names as in the module doc)."""
+    rtol: float = 1e-8
+    max_iterations: int = 3000
+    armijo: float = 1e-4
+    max_spin: float = 0.5
+    fraction: float = 0.8
+    shift_start: float = 1e-6
+    halvings: int = 30
+    retries: int = 6
+    max_lags: int = 20
+    lag_relax: float = 0.5
+    lag_tol: float = 1e-3
+    lag_rtol: float = 1e-5
+
+    def __post_init__(self):
+        for name in ("rtol", "armijo", "max_spin", "fraction", "shift_start", "lag_relax",
+                     "lag_tol", "lag_rtol"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"EnergyOptions {name} must be a finite number > 0, not {v!r}")
+        if not self.fraction < 1 or not self.armijo < 1 or not self.lag_relax <= 1:
+            raise ValueError("EnergyOptions fraction and armijo must be below 1, lag_relax "
+                             "at most 1")
+        for name in ("max_iterations", "halvings", "retries", "max_lags"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and v >= 1):
+                raise ValueError(f"EnergyOptions {name} must be an integer >= 1, not {v!r}")
+
+
+@dataclass
+class StepReport:
+    """What one step took."""
+    converged: bool
+    iterations: int = 0           # Newton iterations taken (all lags)
+    shifts: int = 0               # factorizations refused as not positive definite
+    halvings: int = 0
+    retries: int = 0
+    lags: int = 0                 # friction lags solved
+    lag_change: float = 0.0       # the last lag's largest change of a normal force
+    residual: float = np.inf
+    active: int = 0               # node pairs inside the barrier's width
+    min_gap: float = np.inf       # least node-pair gap (distance - D)
+    reason: str = ""
+    sigma: float = 0.0            # the shift the next step starts from
+    history: list = field(default_factory=list)
+    friction: Optional[FrictionLag] = None   # the lag the last solve held (friction on)
+
+
+class EnergySolve:
+    """The rod ``rod`` (its own contact left out) with the node ``barrier``
+    and, with ``mu > 0``, Coulomb friction at the node pairs (slip
+    smoothing ``eps_v``, default 1e-3 of the radius ``radius``)."""
+
+    def __init__(self, rod, barrier: Barrier, radius, mu=0.0, eps_v=None,
+                 options: Optional[EnergyOptions] = None):
+        for pl in rod.point_loads:
+            if pl.follower or pl.kind != "force":
+                raise ValueError(f"EnergySolve needs dead forces only (an energy): the point "
+                                 f"load at node {pl.node} is a "
+                                 f"{'follower ' if pl.follower else ''}{pl.kind}")
+        for dl in rod.distributed:
+            if dl.kind != "force":
+                raise ValueError(f"EnergySolve needs dead forces only (an energy), not a "
+                                 f"distributed {dl.kind}")
+        if not (np.isfinite(mu) and mu >= 0):
+            raise ValueError(f"mu must be a finite number >= 0, not {mu!r}")
+        self.rod, self.barrier, self.radius, self.mu = rod, barrier, float(radius), float(mu)
+        self.eps_v = 1e-3 * self.radius if eps_v is None else float(eps_v)
+        if not (np.isfinite(self.eps_v) and self.eps_v > 0):
+            raise ValueError(f"eps_v must be a finite number > 0, not {eps_v!r}")
+        self.options = options or EnergyOptions()
+        P = Problem(rod)
+        P.contact, P.friction = None, False          # contact is the barrier's here
+        if P.T is not None:
+            raise ValueError("EnergySolve needs supports along the spatial axes")
+        self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
+
+    # -- the energy ------------------------------------------------------
+    def _parts(self, r, R, lam, lag, tangent):
+        ev = self.P.evaluate(r, R, lam, tangent=tangent)
+        bw = barrier_work(r, self.s, self.barrier, hessian=tangent, dofs=6)
+        fw = None if lag is None else friction_work(r, R, lag, self.mu, self.eps_v, tangent)
+        f = ev.external.reshape(-1, 6)
+        E = ev.internal.energy - float(np.sum(f[:, :3] * (r - self.x0))) + bw.energy
+        G = ev.residual + np.pad(bw.gradient, ((0, 0), (0, 3))).ravel()
+        if fw is not None:
+            E, G = E + fw.energy, G + fw.gradient.ravel()
+        K = None
+        if tangent:
+            K = ev.tangent + bw.hessian + (fw.hessian if fw is not None else 0)
+        return E, G, K, ev, bw
+
+    def energy(self, r, R, lam, lag=None):
+        """``(E, G)``: the total energy (with the friction potential of
+        ``lag``) and its gradient over the dofs at ``(r, R)``, load factor
+        ``lam``."""
+        E, G, _, _, _ = self._parts(r, R, lam, lag, False)
+        return E, G
+
+    # -- one Newton solve at a fixed lag ---------------------------------
+    def _direction(self, K, G, sigma, rep):
+        free, o = self.free, self.options
+        Kf = K[free][:, free].tocsc()
+        d = np.abs(Kf.diagonal())
+        d[d == 0] = 1.0
+        while True:
+            A = Kf if sigma == 0 else (Kf + sp.diags(sigma * d)).tocsc()
+            try:
+                lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                               options=dict(SymmetricMode=True))
+                x = lu.solve(-G[free])
+                if np.array_equal(lu.perm_r, lu.perm_c):
+                    definite = bool(np.all(lu.U.diagonal() > 0))
+                else:                        # pivoted: descent is all one can tell
+                    definite = float(G[free] @ x) < 0
+            except RuntimeError:             # exactly singular
+                definite = False
+            if definite and np.all(np.isfinite(x)):
+                dy = np.zeros_like(G)
+                dy[free] = x
+                return dy, sigma
+            sigma = o.shift_start if sigma == 0 else 10 * sigma
+            rep.shifts += 1
+            if sigma > 1e12:
+                raise np.linalg.LinAlgError("no positive definite shift below 1e12")
+
+    def newton(self, r, R, lam, lag, sigma, rep, rtol=None):
+        """Newton on the energy at the fixed ``lag`` to the relative
+        residual ``rtol`` (default the options'); returns ``(r, R, sigma)``
+        and fills ``rep`` (``reason`` set on failure)."""
+        o, P, free = self.options, self.P, self.free
+        rtol = o.rtol if rtol is None else rtol
+        E = G = K = None
+        retries, rn = 0, np.inf
+        while True:
+            if G is None:
+                E, G, K, ev, bw = self._parts(r, R, lam, lag, True)
+                rn = float(np.linalg.norm(G[free]))
+                rep.residual, rep.active, rep.min_gap = rn, bw.active, bw.min_gap
+                rep.history.append(rn)
+                if not np.isfinite(rn):
+                    rep.reason = "non-finite residual"
+                    return r, R, sigma
+                if rn <= rtol * P.force_scale(ev):
+                    return r, R, sigma
+                if rep.iterations >= o.max_iterations:
+                    rep.reason = (f"no convergence in {o.max_iterations} iterations "
+                                  f"(residual {rn:.3e})")
+                    return r, R, sigma
+            try:
+                dy, used = self._direction(K, G, sigma, rep)
+            except np.linalg.LinAlgError as err:
+                rep.reason = str(err)
+                return r, R, sigma
+            slope = float(G[free] @ dy[free])
+            d6 = dy.reshape(-1, 6)
+            alpha = min(1.0,
+                        o.max_spin / max(float(np.linalg.norm(d6[:, 3:], axis=1).max()), 1e-300),
+                        step_bound(r, d6[:, :3], self.s, self.barrier, o.fraction))
+            for _ in range(o.halvings):
+                try:
+                    rt, Rt = P.update(r, R, dy, alpha)
+                    Et, Gt = self.energy(rt, Rt, lam, lag)
+                except ElementRotationError:
+                    Et = np.inf
+                if np.isfinite(Et):
+                    if Et <= E + o.armijo * alpha * slope:
+                        break
+                    if abs(slope) < 1e-11 * max(1.0, abs(E)) and \
+                            np.linalg.norm(Gt[free]) < rn:
+                        break                 # below the energy's round-off: the residual
+                alpha *= 0.5
+                rep.halvings += 1
+            else:
+                if retries == o.retries:
+                    rep.reason = (f"no descent along the Newton update, shift {used:.3g} "
+                                  f"(residual {rn:.3e})")
+                    return r, R, sigma
+                retries += 1
+                rep.retries += 1
+                sigma = max(100 * used, 1e-3)
+                continue
+            sigma = used / 10 if used >= o.shift_start else 0.0
+            r, R, G, retries = rt, Rt, None, 0
+            rep.iterations += 1
+
+    # -- one load step ---------------------------------------------------
+    def step(self, r, R, lam, dlam, previous=None, sigma=0.0):
+        """From the equilibrium ``(r, R)`` at load factor ``lam`` to
+        ``lam + dlam`` (``previous``: the equilibrium before, for the secant
+        predictor).  Returns ``(r, R, StepReport)``; on failure the state
+        given back is where the solve stopped (not an equilibrium)."""
+        P, o = self.P, self.options
+        rep = StepReport(converged=False, sigma=sigma)
+        p = P.prescribed(dlam)
+        r1 = None
+        if previous is not None:
+            dy = P.increment(r, R, previous[0], previous[1])
+            a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction)
+            try:
+                r1, R1 = P.update(r, R, dy, a)
+                if a < 1:
+                    r1, R1 = P.update(r1, R1, p, 1 - a)
+            except ElementRotationError:              # after a snap: no secant
+                r1 = None
+        if r1 is None:
+            r1, R1 = P.update(r, R, p)
+        lam1 = lam + dlam
+        lag = friction_lag(r, R, r, R, self.s, self.barrier) if self.mu else None
+        held = None if lag is None else lag.pairs
+        relax, last = 1.0, np.inf
+        tight = not self.mu
+        for _ in range(o.max_lags + 1 if self.mu else 1):
+            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
+                                        None if tight else o.lag_rtol)
+            rep.lags += 1
+            if rep.reason:
+                return r1, R1, rep
+            if tight:
+                break
+            new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, relax, held)
+            change = lag_change(lag, new, r1.shape[0])
+            rep.lag_change = change
+            if change <= o.lag_tol * new.force.max(initial=0.0):
+                lag, tight = new, True         # settled: one solve to rtol at it
+                continue
+            if change > LAG_STALL * last and relax == 1.0:
+                # the lag alternates or creeps: relaxed from now on (the
+                # same fixed point)
+                relax = o.lag_relax
+                new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, relax, held)
+            lag, last = new, change
+        else:
+            rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
+            return r1, R1, rep
+        rep.converged, rep.sigma, rep.friction = True, sigma, lag
+        return r1, R1, rep

@@ -1,0 +1,154 @@
+"""Newton on the total energy with the node barrier (skfem_rod.minimize):
+the energy and its gradient agree (finite differences through the rod's own
+update, spins included), bad options are refused, and the twisted rod
+snaps into the loop of the reference (the augmented-Lagrangian solve's
+torques, tests/test_dynamics.py) without gradient flow."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod, Section, geometry
+from skfem_rod.contact.barrier import Barrier, friction_lag
+from skfem_rod.minimize import EnergyOptions, EnergySolve
+
+from helpers import load_demo
+
+demo = load_demo("twisted_rod")
+
+
+def _hairpin(n=24):
+    """Two straight arms joined by a half circle, the arms half the node
+    barrier's width outside its contact distance; a dead force on the end.
+    Returns the rod, its radius and the barrier."""
+    eps = 0.05
+
+    def build(half):
+        def r_of_s(s):
+            th = np.clip((s - 1.0) / half, 0.0, np.pi)
+            arm2 = np.clip(s - 1.0 - np.pi * half, 0.0, None)
+            return np.c_[np.minimum(s, 1.0) + half * np.sin(th) - arm2,
+                         half - half * np.cos(th), 0 * s]
+        rod = Rod(geometry.curve(r_of_s, 2.0 + np.pi * half),
+                  Section.circle(E=1e4, nu=0.3, radius=eps), n)
+        return rod, Barrier.for_nodes(rod.mesh.s_nodes, eps, width=0.02, force=1.0)
+
+    _, barrier = build(eps)
+    rod, barrier = build(0.5 * (barrier.distance + 0.5 * barrier.width))
+    rod.clamp("start")
+    rod.add_force("end", [0.0, -0.3, 0.1])
+    return rod, eps, barrier
+
+
+def test_energy_gradient_matches_finite_differences_with_contact_and_friction():
+    rod, eps, barrier = _hairpin()
+    solve = EnergySolve(rod, barrier, eps, mu=0.3)
+    P = solve.P
+    r, R = rod.r0.copy(), rod.R0.copy()
+    rng = np.random.default_rng(4)
+    start = rng.standard_normal(r.shape) * 1e-4
+    r0 = r + start
+    lag = friction_lag(r, R, r0, R, solve.s, barrier)
+    assert lag.pairs.shape[0] > 0
+    E, G = solve.energy(r, R, 0.5, lag)
+    v = rng.standard_normal(G.size) * 1e-3
+    v[~P.free] = 0.0
+    h = 1e-6
+    Ep, _ = solve.energy(*P.update(r, R, v, h), 0.5, lag)
+    Em, _ = solve.energy(*P.update(r, R, v, -h), 0.5, lag)
+    fd = (Ep - Em) / (2 * h)
+    assert fd == pytest.approx(float(G @ v), rel=1e-6)
+
+
+def test_bad_input_is_refused_with_the_parameter_named():
+    rod, eps, barrier = _hairpin()
+    with pytest.raises(ValueError, match="mu"):
+        EnergySolve(rod, barrier, eps, mu=-0.1)
+    with pytest.raises(ValueError, match="rtol"):
+        EnergyOptions(rtol=0.0)
+    with pytest.raises(ValueError, match="max_lags"):
+        EnergyOptions(max_lags=0)
+    rod.add_force("end", [0.0, 0.0, 1.0], follower=True)
+    with pytest.raises(ValueError, match="follower"):
+        EnergySolve(rod, barrier, eps)
+
+
+@pytest.mark.slow
+def test_twisted_rod_snaps_into_the_reference_loop():
+    """The contact scene of tests/test_dynamics.py (L = 10 lambda, radius
+    0.1 lambda; 108 elements here, the node spacing a third of the radius,
+    where the augmented-Lagrangian solve used 36) in steps of 0.1 turn: the straight branch's
+    torque at 1.7 turns (1.913 sqrt(BT)), the loop closed by contact at 1.8
+    turns with the reference's torque 0.89 (within 0.02: the barrier's
+    standoff), a recorded state never overlapping, link kept."""
+    rod = demo.build(10.0, 108, 0.1, 1.9, 0.01, 0.01)
+    rod.contact = None
+    barrier = Barrier.for_nodes(rod.mesh.s_nodes, 0.1)
+    solve = EnergySolve(rod, barrier, 0.1)
+    P = solve.P
+    from skfem_rod.contact.crossing import min_distance
+    from skfem_rod.topology import topology
+    end = rod.node("end")
+    order = np.argsort(rod.mesh.s_nodes)
+    r, R, lam, prev, sigma = rod.r0.copy(), rod.R0.copy(), 0.0, None, 0.0
+    torque = {}
+    for k in range(1, 19):
+        r1, R1, rep = solve.step(r, R, lam, 1 / 19, prev, sigma)
+        assert rep.converged, rep.reason
+        prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + 1 / 19, rep.sigma
+        turns = round(lam * 1.9, 6)
+        ev = P.evaluate(r, R, lam, tangent=False)
+        torque[turns] = float((ev.residual + ev.external).reshape(-1, 6)[end, 3])
+        md = min_distance(rod.mesh, r, 0.1, barrier.exclusion)
+        assert md.distance >= 2 * 0.1 * (1 - 1e-3)
+        link = topology(r[order], R[order][:, :, 0]).link
+        assert link == pytest.approx(np.floor(turns + 0.5), abs=1e-6)   # no strand passage
+    assert torque[1.7] == pytest.approx(1.913, abs=0.01)
+    assert torque[1.8] == pytest.approx(0.89, abs=0.02)
+
+
+def _pressed_hairpin(mu, steps=4):
+    """The hairpin's free arm pressed onto the clamped one (-y) and pulled
+    along it (+x) by a dead end force growing with the load factor; returns
+    the solve, the last state and the step reports."""
+    rod, eps, barrier = _hairpin()
+    rod.point_loads.clear()
+    rod.add_force("end", [0.02, -0.05, 0.0])
+    solve = EnergySolve(rod, barrier, eps, mu=mu)
+    r, R, lam, prev, sigma, reps = rod.r0.copy(), rod.R0.copy(), 0.0, None, 0.0, []
+    for _ in range(steps):
+        r1, R1, rep = solve.step(r, R, lam, 1 / steps, prev, sigma)
+        assert rep.converged, rep.reason
+        prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + 1 / steps, rep.sigma
+        reps.append(rep)
+    return solve, rod, r, R, reps
+
+
+def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
+    """Friction resists the pull along the arm (the end moves less along x
+    with mu = 0.3 than without, and less still with mu = 1); at every
+    converged step the state is an equilibrium with the friction of the
+    lag it settled at, and every pair's friction force is within Coulomb's
+    bound at the pair's actual normal force there, to the lag tolerance."""
+    from skfem_rod.contact.barrier import barrier_work, friction_work, potential
+    moved = {}
+    for mu in (0.0, 0.3, 1.0):
+        solve, rod, r, R, reps = _pressed_hairpin(mu)
+        end = rod.node("end")
+        moved[mu] = float(r[end, 0] - rod.r0[end, 0])
+        assert barrier_work(r, solve.s, solve.barrier, hessian=False).active > 0
+        if mu == 0:
+            assert all(rep.friction is None for rep in reps)
+            continue
+        lag = reps[-1].friction
+        assert lag.pairs.shape[0] > 0 and reps[-1].lags >= 2
+        _, G = solve.energy(r, R, 1.0, lag)
+        ev = solve.P.evaluate(r, R, 1.0, tangent=False)
+        assert np.linalg.norm(G[solve.free]) <= solve.options.rtol * solve.P.force_scale(ev)
+        w = friction_work(r, R, lag, mu, solve.eps_v, hessian=False)
+        i, j = lag.pairs[:, 0], lag.pairs[:, 1]
+        g = np.linalg.norm(r[i] - r[j], axis=1) - solve.barrier.distance
+        lam_now = np.where(g < solve.barrier.width, -potential(
+            np.minimum(g, solve.barrier.width), solve.barrier.width,
+            solve.barrier.stiffness)[1], 0.0)
+        slack = solve.options.lag_tol * lam_now.max()
+        assert np.all(np.linalg.norm(w.force, axis=1) <= mu * (lam_now + slack) * (1 + 1e-12))
+    assert moved[0.0] > moved[0.3] > moved[1.0] >= 0.0
