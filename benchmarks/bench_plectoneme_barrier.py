@@ -1,47 +1,30 @@
-"""The plectoneme of ``bench_plectoneme.py`` by Newton on the total energy,
-with the smooth node barrier of :mod:`skfem_rod.contact.barrier` in place
+"""The plectoneme of ``bench_plectoneme.py`` by Newton on the total energy
+(:mod:`skfem_rod.minimize`), with the smooth node barrier of
+:mod:`skfem_rod.contact.barrier` and its lagged Coulomb friction in place
 of the paper's augmented-Lagrangian contact: a design experiment of issue
-13 (frictionless only; not yet a solve option of the library).
+13, not yet a solve option of ``Rod.solve``.
 
 Usage::
 
-    python benchmarks/bench_plectoneme_barrier.py                  # 100 and 200 elements
-    python benchmarks/bench_plectoneme_barrier.py --elements 100 --budget 120 --out /tmp/pb
+    python benchmarks/bench_plectoneme_barrier.py              # 100 and 200 elements,
+                                                               # gamma_T = 0 and 0.3
+    python benchmarks/bench_plectoneme_barrier.py --elements 100 --gammas 0 --budget 120 --out /tmp/pb
 
 Same rod, supports, loads and twist as ``bench_plectoneme.py`` (dead
-tension, lateral imperfection, the end turned 10 times), contact off in the
-rod and the barrier added to its energy.  All loads are dead and the twist
-is prescribed, so the equilibria are the stationary points of
+tension, lateral imperfection, the end turned 10 times), the rod's own
+contact off and the barrier (width 0.02 r, a pair's force 1.0 at half the
+width) added to its energy; steps of 1/16 turn, each solved by
+:meth:`skfem_rod.minimize.EnergySolve.step` (secant predictor, Newton with
+the tangent shifted where it is not positive definite, steps bounded by
+continuous collision detection and an Armijo line search on the energy;
+with friction, the normal forces lagged until they settle to 1e-3).
 
-    E(y) = U_rod(y) - f . (x - x_0) + sum over node pairs b(g_ij)
-
-and each load step (1/16 turn) minimizes it by Newton:
-
-* **predictor**: the last step's increment again (secant), cut by the step
-  bound so that no node pair closes; the rest of the prescribed rotation
-  applied at the end;
-* **direction**: ``(K + sigma diag|K|) dy = -G`` on the free dofs, with
-  ``sigma`` 0 where ``K`` is positive definite and else raised by 10 from
-  1e-6 until it is (the inertia read off the pivots of a symmetric-mode LU
-  without row pivoting); the next iteration starts from a tenth of the
-  last shift;
-* **step**: at most 0.5 rad of spin per node and at most 0.8 of the way to
-  the first node-pair contact (:func:`~skfem_rod.contact.barrier.step_bound`),
-  halved until the energy falls by the Armijo fraction 1e-4 of the slope
-  (after 30 halvings the update is computed again with the shift raised a
-  hundredfold, at most 6 times in a row);
-  where the slope is below the energy's round-off (``|G . dy| < 1e-11
-  |E|``) the residual norm decides instead;
-* **converged**: the residual on the free dofs below ``rtol = 1e-8`` of
-  the force scale (``Problem.force_scale``), as every Newton of the
-  package.
-
-Recorded per step: turns, end position and torque, active pairs, Newton
-iterations, shifts, halvings, and the true penetration of the centrelines
-(``skfem_rod.contact.crossing.min_distance``, closest points of element
-pairs, both parameters free).  Results: ``<out>.json`` and ``<out>.png``
-(extension and torque against turns beside the reference relations of
-``bench_plectoneme.py``).
+Recorded per step: turns, end position and torque, pairs inside the
+barrier's width, Newton iterations, lags, shifts, halvings, and the true
+penetration of the centrelines (``skfem_rod.contact.crossing.min_distance``,
+closest points of element pairs, both parameters free).  Results:
+``<out>.json`` and ``<out>.png`` (extension and torque against turns
+beside the reference relations of ``bench_plectoneme.py``).
 """
 import argparse
 import json

@@ -124,6 +124,10 @@ class EnergySolve:
             if dl.kind != "force":
                 raise ValueError(f"EnergySolve needs dead forces only (an energy), not a "
                                  f"distributed {dl.kind}")
+        if getattr(rod.mesh, "closed", False) and barrier.period is None:
+            raise ValueError("barrier: a closed rod needs the barrier's period, "
+                             "Barrier.for_nodes(..., period=rod length), or every pair "
+                             "across the closure point touches")
         if not (np.isfinite(mu) and mu >= 0):
             raise ValueError(f"mu must be a finite number >= 0, not {mu!r}")
         self.rod, self.barrier, self.radius, self.mu = rod, barrier, float(radius), float(mu)
@@ -193,10 +197,11 @@ class EnergySolve:
         o, P, free = self.options, self.P, self.free
         rtol = o.rtol if rtol is None else rtol
         E = G = K = None
-        retries, rn = 0, np.inf
+        retries, rn, trial = 0, np.inf, None
         while True:
             if G is None:
-                E, G, K, ev, bw = self._parts(r, R, lam, lag, True)
+                # the accepted trial was evaluated with its tangent: reused
+                E, G, K, ev, bw = trial or self._parts(r, R, lam, lag, True)
                 rn = float(np.linalg.norm(G[free]))
                 rep.residual, rep.active, rep.min_gap = rn, bw.active, bw.min_gap
                 rep.history.append(rn)
@@ -222,9 +227,13 @@ class EnergySolve:
             for _ in range(o.halvings):
                 try:
                     rt, Rt = P.update(r, R, dy, alpha)
-                    Et, Gt = self.energy(rt, Rt, lam, lag)
+                    # the full step is taken most often: its tangent with it
+                    trial = self._parts(rt, Rt, lam, lag, alpha == 1.0)
+                    Et, Gt = trial[:2]
+                    if alpha != 1.0:
+                        trial = None
                 except ElementRotationError:
-                    Et = np.inf
+                    Et, trial = np.inf, None
                 if np.isfinite(Et):
                     if Et <= E + o.armijo * alpha * slope:
                         break
@@ -240,10 +249,11 @@ class EnergySolve:
                     return r, R, sigma
                 retries += 1
                 rep.retries += 1
-                sigma = max(100 * used, 1e-3)
+                sigma, trial = max(100 * used, 1e-3), None
                 continue
             sigma = used / 10 if used >= o.shift_start else 0.0
             r, R, G, retries = rt, Rt, None, 0
+            trial = trial if trial is not None and np.isfinite(trial[0]) else None
             rep.iterations += 1
 
     # -- one load step ---------------------------------------------------

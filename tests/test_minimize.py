@@ -152,3 +152,20 @@ def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
         slack = solve.options.lag_tol * lam_now.max()
         assert np.all(np.linalg.norm(w.force, axis=1) <= mu * (lam_now + slack) * (1 + 1e-12))
     assert moved[0.0] > moved[0.3] > moved[1.0] >= 0.0
+
+
+def test_an_unloaded_closed_ring_stays_put():
+    """A closed ring without loads, the barrier periodic: no pair across
+    the closure point, no motion.  Without the period the rod is refused."""
+    from skfem_rod.contact.search import arclength_period
+    rod = Rod(geometry.ring(1.0), Section.circle(E=1e4, nu=0.3, radius=0.02), 40)
+    period = arclength_period(rod.mesh)
+    assert period == pytest.approx(2 * np.pi)
+    with pytest.raises(ValueError, match="period"):
+        EnergySolve(rod, Barrier.for_nodes(rod.mesh.s_nodes, 0.02), 0.02)
+    barrier = Barrier.for_nodes(rod.mesh.s_nodes, 0.02, period=period)
+    solve = EnergySolve(rod, barrier, 0.02, mu=0.3)
+    r1, R1, rep = solve.step(rod.r0, rod.R0, 0.0, 1.0)
+    assert rep.converged, rep.reason
+    assert rep.active == 0
+    assert np.abs(r1 - rod.r0).max() < 1e-12

@@ -57,6 +57,7 @@ class Barrier:
     width: float         # g_hat: the barrier acts for 0 < g < g_hat
     stiffness: float     # kappa
     exclusion: float     # node pairs closer than this in arclength never touch
+    period: object = None  # a closed rod's length (arclength is periodic), or None
 
     def __post_init__(self):
         for name in ("distance", "width", "stiffness"):
@@ -68,12 +69,14 @@ class Barrier:
                              f"not {self.exclusion!r}")
 
     @classmethod
-    def for_nodes(cls, s, radius, width=0.02, force=1.0, exclusion=None):
+    def for_nodes(cls, s, radius, width=0.02, force=1.0, exclusion=None, period=None):
         """The barrier for nodes at arclengths ``s`` (any order) of a rod of
         contact radius ``radius``: ``D = 2 radius + a^2 / (8 radius)``
         with ``a`` the largest node spacing, ``g_hat = width radius``, the
         stiffness from ``force`` (module doc), ``exclusion`` default
-        ``pi radius`` (:mod:`.search`)."""
+        ``pi radius`` (:mod:`.search`); ``period``: a closed rod's length
+        (:func:`.search.arclength_period`), the exclusion then wraps around
+        the closure."""
         if not (np.isfinite(radius) and radius > 0):
             raise ValueError(f"radius must be a finite number > 0, not {radius!r}")
         if not (np.isfinite(width) and 0 < width):
@@ -85,7 +88,8 @@ class Barrier:
         ghat = width * radius
         return cls(distance=2 * radius + a ** 2 / (8 * radius), width=ghat,
                    stiffness=force / (HALF_WIDTH_FORCE * ghat),
-                   exclusion=np.pi * radius if exclusion is None else float(exclusion))
+                   exclusion=np.pi * radius if exclusion is None else float(exclusion),
+                   period=None if period is None else float(period))
 
 
 def potential(g, width, stiffness):
@@ -99,14 +103,18 @@ def potential(g, width, stiffness):
     return b, b1, b2
 
 
-def node_pairs(x, s, reach, exclusion):
+def node_pairs(x, s, reach, exclusion, period=None):
     """Pairs ``(k, 2)`` of nodes (positions ``x``, arclengths ``s``) closer
-    than ``reach`` in space and at least ``exclusion`` apart in arclength."""
+    than ``reach`` in space and at least ``exclusion`` apart in arclength
+    (periodic with ``period``: a closed rod)."""
     from scipy.spatial import cKDTree
     pr = cKDTree(x).query_pairs(reach, output_type="ndarray")
     if pr.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    return pr[np.abs(s[pr[:, 0]] - s[pr[:, 1]]) >= exclusion]
+    arc = np.abs(s[pr[:, 0]] - s[pr[:, 1]])
+    if period is not None:
+        arc = np.minimum(arc, period - arc)
+    return pr[arc >= exclusion]
 
 
 class BarrierWork(NamedTuple):
@@ -128,7 +136,7 @@ def barrier_work(x, s, barrier, hessian=True, dofs=3, psd=False):
     x = np.asarray(x, float)
     n = x.shape[0]
     bw = barrier
-    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion)
+    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
     grad = np.zeros((n, 3))
     empty = sp.csc_matrix((n * dofs, n * dofs)) if hessian else None
     if pr.shape[0] == 0:
@@ -173,7 +181,7 @@ def step_bound(x, dx, s, barrier, fraction=0.8):
     x, dx = np.asarray(x, float), np.asarray(dx, float)
     bw = barrier
     m = float(np.linalg.norm(dx, axis=1).max(initial=0.0))
-    pr = node_pairs(x, s, bw.distance + bw.width + 2 * m, bw.exclusion)
+    pr = node_pairs(x, s, bw.distance + bw.width + 2 * m, bw.exclusion, bw.period)
     if pr.shape[0] == 0:
         return 1.0
     d0 = x[pr[:, 0]] - x[pr[:, 1]]
@@ -268,7 +276,7 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, relax=1.0, held=None):
     they are held and slip from the step's start.  Without ``held`` every
     pair slips from the step's start (``x0``, ``R0``)."""
     bw = barrier
-    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion)
+    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
     d = x[pr[:, 0]] - x[pr[:, 1]]
     dist = np.linalg.norm(d, axis=1)
     keep = (dist > bw.distance) & (dist < bw.distance + bw.width)
