@@ -84,17 +84,30 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                   f"halvings {rec['halvings']})  penetration={rec['true_penetration']:+.2e} r  "
                   f"{rec['wall']:.1f} s", flush=True)
     its = np.array([q["iterations"] for q in recs])
+    state = dict(r=r, R=R, order=np.argsort(rod.mesh.s_nodes))
     out = dict(n_elements=n_elements, gamma_T=gamma_T, turns=recs[-1]["turns"] if recs else 0.0,
                wall=time.perf_counter() - t0, stop=stop, records=recs,
                median_iterations=float(np.median(its)) if its.size else None,
                total_iterations=int(its.sum()),
                max_true_penetration=max((q["true_penetration"] for q in recs), default=None),
                width=width, force=force, step=step)
+    out["_state"] = state
     if verbose:
         print(f"  -> {out['turns']:.3f} turns in {out['wall']:.1f} s, median "
               f"{out['median_iterations']} Newton iterations per step"
               + (f"; stopped: {stop}" if stop else ""), flush=True)
     return out
+
+
+def render(run_out, path):
+    """The last state of a run as a striped tube (off screen), ``path``."""
+    from skfem_rod.render import render_rod
+    st = run_out["_state"]
+    o = st["order"]
+    render_rod(path, st["r"][o], st["R"][o], bp.RADIUS, off_screen=True, camera=(0.3, -1, 0.5),
+               title=f"{run_out['n_elements']} elements, gamma_T = {run_out['gamma_T']:g}: "
+                     f"{run_out['turns']:.3g} turns (node barrier, Newton on the energy)")
+    return path
 
 
 def main(argv=None):
@@ -113,6 +126,9 @@ def main(argv=None):
     runs = [run(n, g, a.turns, a.step, a.budget, a.width, a.force)
             for n in a.elements for g in a.gammas]
     out = Path(a.out)
+    pngs = [render(q, f"{a.out}_{q['n_elements']}_{q['gamma_T']:g}.png") for q in runs]
+    for q in runs:
+        q.pop("_state")
     tmp = out.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(dict(command=" ".join(["python"] + sys.argv), runs=runs),
                               indent=1))
@@ -120,7 +136,7 @@ def main(argv=None):
     bp.plot(runs, str(out.with_suffix(".png")),
             title="plectoneme (L = 1, r = 0.025, T = 10 EI/L$^2$): Newton on the energy "
                   "with a node barrier")
-    print(f"wrote {out.with_suffix('.json')} and {out.with_suffix('.png')}")
+    print(f"wrote {out.with_suffix('.json')}, {out.with_suffix('.png')} and " + ", ".join(pngs))
 
 
 if __name__ == "__main__":

@@ -69,7 +69,7 @@ class EnergyOptions:
     shift_start: float = 1e-6
     halvings: int = 30
     retries: int = 6
-    max_lags: int = 20
+    max_lags: int = 60
     lag_relax: float = 0.5
     lag_tol: float = 1e-3
     lag_rtol: float = 1e-5
