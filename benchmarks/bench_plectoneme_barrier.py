@@ -53,20 +53,10 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
     solve = EnergySolve(rod, barrier, bp.RADIUS, mu=gamma_T)
     P = solve.P
     end = rod.node("end")
-    r, R, lam = rod.r0.copy(), rod.R0.copy(), 0.0
-    n_steps = int(round(turns / step))
-    dlam = step / bp.TURNS
-    prev, recs, stop, sigma = None, [], "", 0.0
+    recs = []
     t0 = time.perf_counter()
-    for k in range(1, n_steps + 1):
-        if time.perf_counter() - t0 > budget:
-            stop = f"the budget of {budget:g} s ran out"
-            break
-        r1, R1, rep = solve.step(r, R, lam, dlam, prev, sigma)
-        if not rep.converged:
-            stop = f"step {k} ({(lam + dlam) * bp.TURNS:.4g} turns): {rep.reason}"
-            break
-        prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + dlam, rep.sigma
+
+    def record(k, lam, r, R, rep):
         ev = P.evaluate(r, R, lam, tangent=False)
         reaction = (ev.residual + ev.external).reshape(-1, 6)[end]
         md = min_distance(rod.mesh, r, bp.RADIUS, barrier.exclusion)
@@ -83,6 +73,9 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                   f"its={rec['iterations']:3d} (lags {rec['lags']}, shifts {rec['shifts']}, "
                   f"halvings {rec['halvings']})  penetration={rec['true_penetration']:+.2e} r  "
                   f"{rec['wall']:.1f} s", flush=True)
+    path = solve.path(int(round(turns / step)), turns / bp.TURNS, record, budget)
+    _, r, R = path.states[-1]
+    stop = path.stop
     its = np.array([q["iterations"] for q in recs])
     state = dict(r=r, R=R, order=np.argsort(rod.mesh.s_nodes))
     out = dict(n_elements=n_elements, gamma_T=gamma_T, turns=recs[-1]["turns"] if recs else 0.0,

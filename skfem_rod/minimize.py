@@ -49,7 +49,7 @@ from .contact.barrier import (Barrier, FrictionLag, barrier_work, friction_lag,
 from .kinematics import ElementRotationError
 from .problem import Problem
 
-__all__ = ["EnergyOptions", "EnergySolve", "StepReport"]
+__all__ = ["EnergyOptions", "EnergySolve", "Path", "StepReport"]
 
 #: a lag whose largest change of a normal force is above this fraction of
 #: the last one's is relaxed (``EnergyOptions.lag_relax``) for the rest of
@@ -106,6 +106,18 @@ class StepReport:
     sigma: float = 0.0            # the shift the next step starts from
     history: list = field(default_factory=list)
     friction: Optional[FrictionLag] = None   # the lag the last solve held (friction on)
+
+
+@dataclass
+class Path:
+    """What :meth:`EnergySolve.path` reached."""
+    states: list = field(default_factory=list)     # (load factor, r, R), converged
+    reports: list = field(default_factory=list)    # StepReport per step tried
+    stop: str = ""                                  # where and why it stopped; "" if done
+
+    @property
+    def converged(self):
+        return not self.stop
 
 
 class EnergySolve:
@@ -255,6 +267,38 @@ class EnergySolve:
             r, R, G, retries = rt, Rt, None, 0
             trial = trial if trial is not None and np.isfinite(trial[0]) else None
             rep.iterations += 1
+
+    # -- a load path -----------------------------------------------------
+    def path(self, n_steps, lam_end=1.0, callback=None, budget=None):
+        """From the rod's reference state (load factor 0) to ``lam_end`` in
+        ``n_steps`` equal steps (:meth:`step`, each from the last with the
+        secant predictor).  ``callback(k, lam, r, R, report)`` after every
+        converged step; ``budget``: wall seconds, checked before each step.
+        Returns :class:`Path`: the converged states, and where and why it
+        stopped (empty when it reached ``lam_end``)."""
+        import time
+        if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
+            raise ValueError(f"n_steps must be an integer >= 1, not {n_steps!r}")
+        if not np.isfinite(lam_end):
+            raise ValueError(f"lam_end must be a finite number, not {lam_end!r}")
+        r, R, lam = self.rod.r0.copy(), self.rod.R0.copy(), 0.0
+        dlam, prev, sigma = lam_end / n_steps, None, 0.0
+        out = Path(states=[(0.0, r, R)])
+        t0 = time.perf_counter()
+        for k in range(1, n_steps + 1):
+            if budget is not None and time.perf_counter() - t0 > budget:
+                out.stop = f"the budget of {budget:g} s ran out at load factor {lam:.6g}"
+                break
+            r1, R1, rep = self.step(r, R, lam, dlam, prev, sigma)
+            out.reports.append(rep)
+            if not rep.converged:
+                out.stop = f"step {k} (load factor {lam + dlam:.6g}): {rep.reason}"
+                break
+            prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + dlam, rep.sigma
+            out.states.append((lam, r, R))
+            if callback is not None:
+                callback(k, lam, r, R, rep)
+        return out
 
     # -- one load step ---------------------------------------------------
     def step(self, r, R, lam, dlam, previous=None, sigma=0.0):

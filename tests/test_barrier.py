@@ -4,6 +4,7 @@ gradient and Hessian, the exclusion, and the step bound (continuous
 collision detection) exact on straight paths."""
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from skfem_rod.contact.barrier import (Barrier, barrier_work, friction_lag, friction_work,
                                        node_pairs, potential, step_bound)
@@ -140,12 +141,10 @@ def test_for_nodes_sets_the_contact_distance_from_the_spacing():
 # -- friction at the node pairs ------------------------------------------------
 
 def _rotations(n, seed):
-    from scipy.spatial.transform import Rotation
     return Rotation.random(n, random_state=seed).as_matrix()
 
 
 def _spin(R, w):
-    from scipy.spatial.transform import Rotation
     return Rotation.from_rotvec(w).as_matrix() @ R
 
 

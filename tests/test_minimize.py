@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.contact.barrier import Barrier, friction_lag
+from skfem_rod.contact.barrier import (Barrier, barrier_work, friction_lag, friction_work,
+                                       potential)
+from skfem_rod.contact.crossing import min_distance
+from skfem_rod.contact.search import arclength_period
 from skfem_rod.minimize import EnergyOptions, EnergySolve
+from skfem_rod.topology import topology
 
 from helpers import load_demo
 
@@ -84,16 +88,11 @@ def test_twisted_rod_snaps_into_the_reference_loop():
     barrier = Barrier.for_nodes(rod.mesh.s_nodes, 0.1)
     solve = EnergySolve(rod, barrier, 0.1)
     P = solve.P
-    from skfem_rod.contact.crossing import min_distance
-    from skfem_rod.topology import topology
     end = rod.node("end")
     order = np.argsort(rod.mesh.s_nodes)
-    r, R, lam, prev, sigma = rod.r0.copy(), rod.R0.copy(), 0.0, None, 0.0
     torque = {}
-    for k in range(1, 19):
-        r1, R1, rep = solve.step(r, R, lam, 1 / 19, prev, sigma)
-        assert rep.converged, rep.reason
-        prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + 1 / 19, rep.sigma
+
+    def check(k, lam, r, R, rep):
         turns = round(lam * 1.9, 6)
         ev = P.evaluate(r, R, lam, tangent=False)
         torque[turns] = float((ev.residual + ev.external).reshape(-1, 6)[end, 3])
@@ -101,6 +100,9 @@ def test_twisted_rod_snaps_into_the_reference_loop():
         assert md.distance >= 2 * 0.1 * (1 - 1e-3)
         link = topology(r[order], R[order][:, :, 0]).link
         assert link == pytest.approx(np.floor(turns + 0.5), abs=1e-6)   # no strand passage
+    path = solve.path(18, 18 / 19, check)
+    assert path.converged, path.stop
+    assert len(path.states) == 19 and len(torque) == 18
     assert torque[1.7] == pytest.approx(1.913, abs=0.01)
     assert torque[1.8] == pytest.approx(0.89, abs=0.02)
 
@@ -113,12 +115,10 @@ def _pressed_hairpin(mu, steps=4):
     rod.point_loads.clear()
     rod.add_force("end", [0.02, -0.05, 0.0])
     solve = EnergySolve(rod, barrier, eps, mu=mu)
-    r, R, lam, prev, sigma, reps = rod.r0.copy(), rod.R0.copy(), 0.0, None, 0.0, []
-    for _ in range(steps):
-        r1, R1, rep = solve.step(r, R, lam, 1 / steps, prev, sigma)
-        assert rep.converged, rep.reason
-        prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + 1 / steps, rep.sigma
-        reps.append(rep)
+    path = solve.path(steps)
+    assert path.converged, path.stop
+    _, r, R = path.states[-1]
+    reps = path.reports
     return solve, rod, r, R, reps
 
 
@@ -128,7 +128,6 @@ def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
     converged step the state is an equilibrium with the friction of the
     lag it settled at, and every pair's friction force is within Coulomb's
     bound at the pair's actual normal force there, to the lag tolerance."""
-    from skfem_rod.contact.barrier import barrier_work, friction_work, potential
     moved = {}
     for mu in (0.0, 0.3, 1.0):
         solve, rod, r, R, reps = _pressed_hairpin(mu)
@@ -157,7 +156,6 @@ def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
 def test_an_unloaded_closed_ring_stays_put():
     """A closed ring without loads, the barrier periodic: no pair across
     the closure point, no motion.  Without the period the rod is refused."""
-    from skfem_rod.contact.search import arclength_period
     rod = Rod(geometry.ring(1.0), Section.circle(E=1e4, nu=0.3, radius=0.02), 40)
     period = arclength_period(rod.mesh)
     assert period == pytest.approx(2 * np.pi)
