@@ -6,8 +6,8 @@ Not the paper's model.  The paper (sec. 3-4) imposes ``d >= 2 eps`` at slave
 Gauss points projected on the master curve, by an augmented Lagrangian.
 Here every pair of centreline nodes ``i, j`` (the P3 nodes, which lie on
 the curve, a third of an element apart) at least ``exclusion`` apart in
-arclength carries the barrier energy of Li et al. (IPC, ACM TOG 39, 2020,
-eq. 6) on its gap ``g = |x_i - x_j| - D``:
+arclength carries the barrier energy of Li et al. (IPC, ACM TOG 39, 2020)
+on its gap ``g = |x_i - x_j| - D``:
 
     b(g) = -kappa (g - g_hat)^2 ln(g / g_hat)   for 0 < g < g_hat,  0 beyond,
 
@@ -200,7 +200,7 @@ def step_bound(x, dx, s, barrier, fraction=0.8):
 
 # -- friction ---------------------------------------------------------------
 #
-# Coulomb friction at the node pairs as in IPC (Li et al. 2020, sec. 5): the
+# Coulomb friction at the node pairs as in IPC (Li et al. 2020): the
 # normal force, the contact normal and the pairs are lagged (taken at a
 # configuration of the step and held while Newton solves), and the friction
 # is the gradient of the dissipation potential
