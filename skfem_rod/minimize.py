@@ -121,12 +121,15 @@ class Path:
 
 
 class EnergySolve:
-    """The rod ``rod`` (its own contact left out) with the node ``barrier``
+    """The rod ``rod`` (without contact of its own) with the node ``barrier``
     and, with ``mu > 0``, Coulomb friction at the node pairs (slip
     smoothing ``eps_v``, default 1e-3 of the radius ``radius``)."""
 
     def __init__(self, rod, barrier: Barrier, radius, mu=0.0, eps_v=None,
                  options: Optional[EnergyOptions] = None):
+        if rod.contact is not None:
+            raise ValueError("rod: the node barrier replaces the rod's own contact; build the "
+                             "rod without enable_contact (rod.contact must be None)")
         for pl in rod.point_loads:
             if pl.follower or pl.kind != "force":
                 raise ValueError(f"EnergySolve needs dead forces only (an energy): the point "
@@ -148,7 +151,6 @@ class EnergySolve:
             raise ValueError(f"eps_v must be a finite number > 0, not {eps_v!r}")
         self.options = options or EnergyOptions()
         P = Problem(rod)
-        P.contact, P.friction = None, False          # contact is the barrier's here
         if P.T is not None:
             raise ValueError("EnergySolve needs supports along the spatial axes")
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()

@@ -73,6 +73,10 @@ def test_bad_input_is_refused_with_the_parameter_named():
     rod.add_force("end", [0.0, 0.0, 1.0], follower=True)
     with pytest.raises(ValueError, match="follower"):
         EnergySolve(rod, barrier, eps)
+    rod.point_loads.pop()
+    rod.enable_contact(radius=eps)
+    with pytest.raises(ValueError, match="enable_contact"):
+        EnergySolve(rod, barrier, eps)
 
 
 @pytest.mark.slow

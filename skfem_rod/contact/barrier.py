@@ -46,6 +46,8 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from ..rotations import cross, hat
+
 #: ``|b'(g_hat / 2)| / (kappa g_hat)``: the force of a pair at half the width
 HALF_WIDTH_FORCE = np.log(2.0) + 0.5
 
@@ -309,14 +311,6 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, relax=1.0, held=None):
     return FrictionLag(pr, n, lam, arm_i, arm_j, start_i, start_j)
 
 
-def _cross_matrix(c):
-    """``[c]_x`` per row: ``(k, 3, 3)`` with ``[c]_x v = c x v``."""
-    z = np.zeros(c.shape[0])
-    return np.stack([np.stack([z, -c[:, 2], c[:, 1]], 1),
-                     np.stack([c[:, 2], z, -c[:, 0]], 1),
-                     np.stack([-c[:, 1], c[:, 0], z], 1)], 1)
-
-
 class FrictionWork(NamedTuple):
     """The friction potential at one configuration."""
     energy: float
@@ -354,8 +348,8 @@ def friction_work(x, R, lag, mu, eps_v, hessian=True):
     phi = (ml * ratio)[:, None] * u                        # dD/d(delta), in the plane
     np.add.at(grad[:, :3], i, phi)
     np.add.at(grad[:, :3], j, -phi)
-    np.add.at(grad[:, 3:], i, np.cross(c_i, phi))
-    np.add.at(grad[:, 3:], j, -np.cross(c_j, phi))
+    np.add.at(grad[:, 3:], i, cross(c_i, phi))
+    np.add.at(grad[:, 3:], j, -cross(c_j, phi))
     H = None
     if hessian:
         P = np.eye(3) - nrm[:, :, None] * nrm[:, None, :]
@@ -365,8 +359,8 @@ def friction_work(x, R, lag, mu, eps_v, hessian=True):
         Hu = ml[:, None, None] * (ratio[:, None, None] * np.eye(3)
                                   + c[:, None, None] * uh[:, :, None] * uh[:, None, :])
         Hd = P @ Hu @ P
-        J = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -_cross_matrix(c_i),
-                            -np.broadcast_to(np.eye(3), (k, 3, 3)), _cross_matrix(c_j)], axis=2)
+        J = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -hat(c_i),
+                            -np.broadcast_to(np.eye(3), (k, 3, 3)), hat(c_j)], axis=2)
         blk = np.einsum("kai,kab,kbj->kij", J, Hd, J)      # (k, 12, 12)
         dof = np.concatenate([i[:, None] * 6 + np.arange(6), j[:, None] * 6 + np.arange(6)], 1)
         rows = np.repeat(dof, 12, axis=1).ravel()
