@@ -20,8 +20,9 @@ continuous collision detection and an Armijo line search on the energy;
 with friction, the normal forces lagged until they settle to 1e-3).
 
 Recorded per step: turns, end position and torque, pairs inside the
-barrier's width, Newton iterations, lags, shifts, halvings, and the true
-penetration of the centrelines (``skfem_rod.contact.crossing.min_distance``,
+barrier's width, Newton iterations, lags, shifts, halvings, Coulomb's law
+at the converged state (:func:`coulomb_excess`), and the true penetration
+of the centrelines (``skfem_rod.contact.crossing.min_distance``,
 closest points of element pairs, both parameters free).  Results:
 ``<out>.json`` and ``<out>.png`` (extension and torque against turns
 beside the reference relations of ``bench_plectoneme.py``).
@@ -38,7 +39,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bench_plectoneme as bp  # noqa: E402
 
-from skfem_rod.contact.barrier import Barrier  # noqa: E402
+from skfem_rod.contact.barrier import Barrier, friction_work, potential  # noqa: E402
 from skfem_rod.contact.crossing import min_distance  # noqa: E402
 from skfem_rod.minimize import EnergySolve  # noqa: E402
 
@@ -60,7 +61,7 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
         ev = P.evaluate(r, R, lam, tangent=False)
         reaction = (ev.residual + ev.external).reshape(-1, 6)[end]
         md = min_distance(rod.mesh, r, bp.RADIUS, barrier.exclusion)
-        rec = dict(turns=lam * bp.TURNS, x_end=float(r[end, 0]), torque=float(reaction[3]),
+        rec = dict(coulomb=coulomb_excess(solve, r, R, rep), turns=lam * bp.TURNS, x_end=float(r[end, 0]), torque=float(reaction[3]),
                    contacts=rep.active, iterations=rep.iterations, lags=rep.lags,
                    shifts=rep.shifts, halvings=rep.halvings,
                    true_penetration=float((2 * bp.RADIUS - md.distance) / bp.RADIUS),
@@ -83,6 +84,7 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                median_iterations=float(np.median(its)) if its.size else None,
                total_iterations=int(its.sum()),
                max_true_penetration=max((q["true_penetration"] for q in recs), default=None),
+               max_coulomb_excess=max((q["coulomb"] for q in recs), default=None),
                width=width, force=force, step=step)
     out["_state"] = state
     if verbose:
@@ -90,6 +92,24 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
               f"{out['median_iterations']} Newton iterations per step"
               + (f"; stopped: {stop}" if stop else ""), flush=True)
     return out
+
+
+def coulomb_excess(solve, r, R, rep):
+    """Coulomb's law at a converged frictional state: the largest excess of
+    a pair's friction force (of the lag the step settled at) over mu times
+    its actual normal force there, relative to mu times the largest normal
+    force (0 without friction; at most the lag tolerance, 1e-3)."""
+    lag = rep.friction
+    if lag is None or lag.pairs.shape[0] == 0:
+        return 0.0
+    bw = solve.barrier
+    f = np.linalg.norm(friction_work(r, R, lag, solve.mu, solve.eps_v, hessian=False).force,
+                       axis=1)
+    g = np.linalg.norm(r[lag.pairs[:, 0]] - r[lag.pairs[:, 1]], axis=1) - bw.distance
+    inside = (g > 0) & (g < bw.width)
+    lam = np.zeros_like(g)
+    lam[inside] = -potential(g[inside], bw.width, bw.stiffness)[1]
+    return float(np.max(f - solve.mu * lam) / (solve.mu * max(lam.max(), 1e-300)))
 
 
 def render(run_out, path):

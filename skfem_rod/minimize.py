@@ -29,7 +29,8 @@ One step, in plain sight::
                 (below the energy's round-off: until the residual falls);
                 after `halvings` halvings compute the update again with the
                 shift raised a hundredfold, at most `retries` times
-        (the lags' solves to lag_rtol; the one at the settled lag to rtol)
+        (the lags' solves to lag_rtol; from the settled lag on to rtol, and
+            the lag checked again at that state)
         the lag is a fixed point when no pair's normal force lagged at the
             solution differs from the one solved with by more than lag_tol
             times the largest (pairs that met during the step stick where
@@ -334,18 +335,23 @@ class EnergySolve:
             rep.lags += 1
             if rep.reason:
                 return r1, R1, rep
-            if tight:
+            if not self.mu:
                 break
-            new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, relax, held)
+            # the lag at the state (unrelaxed: its normal forces are the
+            # state's) decides whether the lag has settled
+            new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, 1.0, held)
             change = lag_change(lag, new, r1.shape[0])
             rep.lag_change = change
             if change <= o.lag_tol * new.force.max(initial=0.0):
-                lag, tight = new, True         # settled: one solve to rtol at it
+                if tight:                      # settled at the state solved to rtol
+                    break
+                lag, tight = new, True         # settled: solved to rtol at it, checked again
                 continue
             if change > LAG_STALL * last and relax == 1.0:
                 # the lag alternates or creeps: relaxed from now on (the
                 # same fixed point)
                 relax = o.lag_relax
+            if relax != 1.0:
                 new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, relax, held)
             lag, last = new, change
         else:
