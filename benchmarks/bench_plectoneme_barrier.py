@@ -52,13 +52,12 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
     rod.contact = None
     barrier = Barrier.for_nodes(rod.mesh.s_nodes, bp.RADIUS, width=width, force=force)
     solve = EnergySolve(rod, barrier, bp.RADIUS, mu=gamma_T)
-    P = solve.P
     end = rod.node("end")
     recs = []
     t0 = time.perf_counter()
 
     def record(k, lam, r, R, rep):
-        ev = P.evaluate(r, R, lam, tangent=False)
+        ev = rep.evaluation                      # the rod's, at the converged state
         reaction = (ev.residual + ev.external).reshape(-1, 6)[end]
         md = min_distance(rod.mesh, r, bp.RADIUS, barrier.exclusion)
         rec = dict(coulomb=coulomb_excess(solve, r, R, rep), turns=lam * bp.TURNS, x_end=float(r[end, 0]), torque=float(reaction[3]),

@@ -38,6 +38,7 @@ One step, in plain sight::
             LAG_STALL times the last, the lagged forces are relaxed
             (lag_relax) for the rest of the step
 """
+import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -107,6 +108,7 @@ class StepReport:
     sigma: float = 0.0            # the shift the next step starts from
     history: list = field(default_factory=list)
     friction: Optional[FrictionLag] = None   # the lag the last solve held (friction on)
+    evaluation: object = None     # the rod's Evaluation at the last iterate (no barrier)
 
 
 @dataclass
@@ -219,6 +221,7 @@ class EnergySolve:
                 E, G, K, ev, bw = trial or self._parts(r, R, lam, lag, True)
                 rn = float(np.linalg.norm(G[free]))
                 rep.residual, rep.active, rep.min_gap = rn, bw.active, bw.min_gap
+                rep.evaluation = ev
                 rep.history.append(rn)
                 if not np.isfinite(rn):
                     rep.reason = "non-finite residual"
@@ -279,7 +282,6 @@ class EnergySolve:
         converged step; ``budget``: wall seconds, checked before each step.
         Returns :class:`Path`: the converged states, and where and why it
         stopped (empty when it reached ``lam_end``)."""
-        import time
         if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
             raise ValueError(f"n_steps must be an integer >= 1, not {n_steps!r}")
         if not np.isfinite(lam_end):

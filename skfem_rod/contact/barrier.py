@@ -128,13 +128,13 @@ class BarrierWork(NamedTuple):
     min_gap: float            # least gap g of the pairs in reach (inf: none)
 
 
-def barrier_work(x, s, barrier, hessian=True, dofs=3, psd=False):
-    """Energy, gradient and (``hessian``) Hessian of the barrier at node
-    positions ``x`` (``(n, 3)``), arclengths ``s``.  The Hessian is laid
-    out with ``dofs`` unknowns per node, the position first (6: a rod's
-    positions and spins).  ``psd``: each pair's block keeps its
-    normal part ``b'' n n^T`` only (positive semi-definite; the exact
-    block adds ``b'/|d| (I - n n^T)``, negative)."""
+def barrier_work(x, s, barrier, hessian=True, dofs=3):
+    """Energy, gradient and (``hessian``) exact Hessian of the barrier at
+    node positions ``x`` (``(n, 3)``), arclengths ``s``: per pair the block
+    ``b'' n n^T + b'/|d| (I - n n^T)`` (the second part negative; Newton's
+    shift handles the indefinite tangent).  The Hessian is laid out with
+    ``dofs`` unknowns per node, the position first (6: a rod's positions
+    and spins)."""
     x = np.asarray(x, float)
     n = x.shape[0]
     bw = barrier
@@ -159,9 +159,7 @@ def barrier_work(x, s, barrier, hessian=True, dofs=3, psd=False):
     H = None
     if hessian:
         nn = nv[:, :, None] * nv[:, None, :]
-        blk = b2[:, None, None] * nn
-        if not psd:
-            blk = blk + (b1 / dist)[:, None, None] * (np.eye(3) - nn)
+        blk = b2[:, None, None] * nn + (b1 / dist)[:, None, None] * (np.eye(3) - nn)
         I = pr[:, 0, None] * dofs + np.arange(3)
         J = pr[:, 1, None] * dofs + np.arange(3)
         v = blk.reshape(-1, 9)
@@ -183,7 +181,7 @@ def step_bound(x, dx, s, barrier, fraction=0.8):
     x, dx = np.asarray(x, float), np.asarray(dx, float)
     bw = barrier
     m = float(np.linalg.norm(dx, axis=1).max(initial=0.0))
-    pr = node_pairs(x, s, bw.distance + bw.width + 2 * m, bw.exclusion, bw.period)
+    pr = node_pairs(x, s, bw.distance + 2 * m, bw.exclusion, bw.period)    # within reach of D
     if pr.shape[0] == 0:
         return 1.0
     d0 = x[pr[:, 0]] - x[pr[:, 1]]
