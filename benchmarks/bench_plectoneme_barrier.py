@@ -17,11 +17,15 @@ width) added to its energy; steps of 1/16 turn, each solved by
 :meth:`skfem_rod.minimize.EnergySolve.step` (secant predictor, Newton with
 the tangent shifted where it is not positive definite, steps bounded by
 continuous collision detection and an Armijo line search on the energy;
-with friction, the normal forces lagged until they settle to 1e-3).
+with friction, the lag's normal forces brought near their fixed point on
+the energy, then Newton at the state's own normal forces and normals,
+until the state is an equilibrium with its own lag; a failed step tried
+again in halves).
 
 Recorded per step: turns, end position and torque, pairs inside the
-barrier's width, Newton iterations, lags, shifts, halvings, Coulomb's law
-at the converged state (:func:`coulomb_excess`), and the true penetration
+barrier's width, Newton iterations, lags, live-solve fallbacks, whether
+the friction is the state's own (``live``), shifts, halvings, Coulomb's
+law at the converged state (:func:`coulomb_excess`), and the true penetration
 of the centrelines (``skfem_rod.contact.crossing.min_distance``,
 closest points of element pairs, both parameters free).  Results:
 ``<out>.json`` and ``<out>.png`` (extension and torque against turns
@@ -39,7 +43,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bench_plectoneme as bp  # noqa: E402
 
-from skfem_rod.contact.barrier import Barrier, friction_work, potential  # noqa: E402
+from skfem_rod.contact.barrier import (Barrier, friction_live, friction_work,  # noqa: E402
+                                       potential)
 from skfem_rod.contact.crossing import min_distance  # noqa: E402
 from skfem_rod.minimize import EnergySolve  # noqa: E402
 
@@ -61,7 +66,7 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
         reaction = (ev.residual + ev.external).reshape(-1, 6)[end]
         md = min_distance(rod.mesh, r, bp.RADIUS, barrier.exclusion)
         rec = dict(coulomb=coulomb_excess(solve, r, R, rep), turns=lam * bp.TURNS, x_end=float(r[end, 0]), torque=float(reaction[3]),
-                   contacts=rep.active, iterations=rep.iterations, lags=rep.lags,
+                   contacts=rep.active, iterations=rep.iterations, lags=rep.lags, fallbacks=rep.fallbacks, live=rep.live,
                    shifts=rep.shifts, halvings=rep.halvings,
                    true_penetration=float((2 * bp.RADIUS - md.distance) / bp.RADIUS),
                    min_gap=float(rep.min_gap / bp.RADIUS),
@@ -70,18 +75,21 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
         if verbose:
             print(f"  {k:3d}: {rec['turns']:6.3f} turns  x_end={rec['x_end']:.4f}  "
                   f"M={rec['torque']:.4f}  pairs={rec['contacts']:4d}  "
-                  f"its={rec['iterations']:3d} (lags {rec['lags']}, shifts {rec['shifts']}, "
+                  f"its={rec['iterations']:3d} (lags {rec['lags']}, fallbacks {rec['fallbacks']}, shifts {rec['shifts']}, "
                   f"halvings {rec['halvings']})  penetration={rec['true_penetration']:+.2e} r  "
                   f"{rec['wall']:.1f} s", flush=True)
     path = solve.path(int(round(turns / step)), turns / bp.TURNS, record, budget)
     _, r, R = path.states[-1]
     stop = path.stop
     its = np.array([q["iterations"] for q in recs])
+    tries = path.reports                         # every step tried, failed ones too
     state = dict(r=r, R=R, order=np.argsort(rod.mesh.s_nodes))
     out = dict(n_elements=n_elements, gamma_T=gamma_T, turns=recs[-1]["turns"] if recs else 0.0,
                wall=time.perf_counter() - t0, stop=stop, records=recs,
                median_iterations=float(np.median(its)) if its.size else None,
-               total_iterations=int(its.sum()),
+               total_iterations=int(sum(q.iterations for q in tries)),
+               failed_tries=int(sum(not q.converged for q in tries)),
+               live_steps=int(sum(q["live"] for q in recs)),
                max_true_penetration=max((q["true_penetration"] for q in recs), default=None),
                max_coulomb_excess=max((q["coulomb"] for q in recs), default=None),
                width=width, force=force, step=step)
@@ -95,15 +103,18 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
 
 def coulomb_excess(solve, r, R, rep):
     """Coulomb's law at a converged frictional state: the largest excess of
-    a pair's friction force (of the lag the step settled at) over mu times
-    its actual normal force there, relative to mu times the largest normal
-    force (0 without friction; at most the lag tolerance, 1e-3)."""
+    a pair's friction force (the one in equilibrium there: at the state's
+    own normal forces, or, where the step fell back to the settled lag, at
+    the lag's) over mu times its actual normal force there, relative to mu
+    times the largest normal force (0 without friction; at most round-off
+    at the state's own forces, the lag tolerance 1e-3 at the lag's)."""
     lag = rep.friction
     if lag is None or lag.pairs.shape[0] == 0:
         return 0.0
     bw = solve.barrier
-    f = np.linalg.norm(friction_work(r, R, lag, solve.mu, solve.eps_v, hessian=False).force,
-                       axis=1)
+    fw = (friction_live(r, R, lag, bw, solve.mu, solve.eps_v, jacobian=False) if rep.live
+          else friction_work(r, R, lag, solve.mu, solve.eps_v, hessian=False))
+    f = np.linalg.norm(fw.force, axis=1)
     g = np.linalg.norm(r[lag.pairs[:, 0]] - r[lag.pairs[:, 1]], axis=1) - bw.distance
     inside = (g > 0) & (g < bw.width)
     lam = np.zeros_like(g)

@@ -9,34 +9,44 @@ prescribed, an equilibrium is a stationary point of
 
     E(y) = U_rod(y) - f . (x - x_0) + sum over node pairs b(g_ij)  [+ D(y)]
 
-(``D`` the friction's dissipation potential at the lagged normal forces).
+(``D`` the friction's dissipation potential at lagged normal forces).
 One step, in plain sight::
 
     predictor: the last step's increment again (secant), cut by the step
         bound; the rest of the prescribed motion applied
-    repeat (friction: until the lag is a fixed point, at most max_lags):
-        lag the friction at the state (pairs, normal forces, normals)
-        Newton on E (+ D):
-            converged when |G_free| <= rtol * force scale
-            solve (K + sigma diag|K|) dy = -G, sigma the least shift
-                (0, then 1e-6 times 10^k) making the matrix positive
-                definite (its inertia from a symmetric-mode LU's pivots);
-                the next iteration starts from a tenth of it
-            alpha: at most max_spin per node, at most `fraction` of the way
-                to the first node-pair contact (continuous collision
-                detection on the positions' straight paths)
-            halve alpha until E falls by the Armijo fraction of the slope
-                (below the energy's round-off: until the residual falls);
-                after `halvings` halvings compute the update again with the
-                shift raised a hundredfold, at most `retries` times
-        (the lags' solves to lag_rtol; from the settled lag on to rtol, and
-            the lag checked again at that state)
-        the lag is a fixed point when no pair's normal force lagged at the
-            solution differs from the one solved with by more than lag_tol
-            times the largest (pairs that met during the step stick where
-            they met: friction_lag's held); once a lag's change is above
-            LAG_STALL times the last, the lagged forces are relaxed
-            (lag_relax) for the rest of the step
+    frictionless: Newton on E to rtol
+    friction:
+        lag the friction at the step's start (pairs, normal forces, normals;
+            each pair's contact point a material point of both sections)
+        settle the lag's normal forces to live_tol (_settle):
+            Newton on E + D to lag_rtol; lag again at the state; Aitken's
+            relaxation of the forces (barrier.Relaxation); until no force
+            changes by more than live_tol times the largest
+        repeat (at most max_lags):
+            lag again at the state (new pairs slip from where they met)
+            Newton with the friction at the state's own normal forces and
+                normals (live: no energy; the exact non-symmetric tangent,
+                a line search on the residual's norm, at most
+                live_iterations)
+            done when the state is an equilibrium with its own lag (the
+                live Newton takes no iteration): Coulomb's law holds at
+                the state's own normal forces
+        if the live Newton fails: settle the lag to lag_tol instead, solve
+            to rtol at it and check it again (Coulomb to lag_tol)
+
+Newton on E (the energy; with friction, E + D at the lag):
+    converged when |G_free| <= rtol * force scale
+    solve (K + sigma diag|K|) dy = -G, sigma the least shift (0, then
+        1e-6 times 10^k) making the matrix positive definite (its inertia
+        from a symmetric-mode LU's pivots); the next iteration starts from
+        a tenth of it
+    alpha: at most max_spin per node, at most `fraction` of the way to the
+        first node-pair contact (continuous collision detection on the
+        positions' straight paths)
+    halve alpha until E falls by the Armijo fraction of the slope (below
+        the energy's round-off: until the residual falls); after
+        `halvings` halvings compute the update again with the shift raised
+        a hundredfold, at most `retries` times
 """
 import time
 from dataclasses import dataclass, field
@@ -46,18 +56,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.barrier import (Barrier, FrictionLag, barrier_work, friction_lag,
-                              friction_work, lag_change, step_bound)
+from .contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work, friction_lag,
+                              friction_live, friction_work, lag_change, step_bound)
 from .kinematics import ElementRotationError
 from .problem import Problem
 
 __all__ = ["EnergyOptions", "EnergySolve", "Path", "StepReport"]
-
-#: a lag whose largest change of a normal force is above this fraction of
-#: the last one's is relaxed (``EnergyOptions.lag_relax``) for the rest of
-#: the step: unrelaxed, the plectoneme's lag alternated between two states
-#: (51 and 54 pairs, the end at 0.1921 and 0.1896) at 2.125 turns
-LAG_STALL = 0.7
 
 
 @dataclass(frozen=True)
@@ -72,23 +76,26 @@ class EnergyOptions:
     halvings: int = 30
     retries: int = 6
     max_lags: int = 60
-    lag_relax: float = 0.5
     lag_tol: float = 1e-3
     lag_rtol: float = 1e-5
+    live_iterations: int = 80
+    cuts: int = 3
+    live_tol: float = 0.3
 
     def __post_init__(self):
-        for name in ("rtol", "armijo", "max_spin", "fraction", "shift_start", "lag_relax",
-                     "lag_tol", "lag_rtol"):
+        for name in ("rtol", "armijo", "max_spin", "fraction", "shift_start", "lag_tol",
+                     "lag_rtol", "live_tol"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"EnergyOptions {name} must be a finite number > 0, not {v!r}")
-        if not self.fraction < 1 or not self.armijo < 1 or not self.lag_relax <= 1:
-            raise ValueError("EnergyOptions fraction and armijo must be below 1, lag_relax "
-                             "at most 1")
-        for name in ("max_iterations", "halvings", "retries", "max_lags"):
+        if not self.fraction < 1 or not self.armijo < 1:
+            raise ValueError("EnergyOptions fraction and armijo must be below 1")
+        for name in ("max_iterations", "halvings", "retries", "max_lags", "live_iterations"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and v >= 1):
                 raise ValueError(f"EnergyOptions {name} must be an integer >= 1, not {v!r}")
+        if not (isinstance(self.cuts, (int, np.integer)) and self.cuts >= 0):
+            raise ValueError(f"EnergyOptions cuts must be an integer >= 0, not {self.cuts!r}")
 
 
 @dataclass
@@ -100,6 +107,8 @@ class StepReport:
     halvings: int = 0
     retries: int = 0
     lags: int = 0                 # friction lags solved
+    fallbacks: int = 0            # live solves that failed (then solved on the energy)
+    live: bool = False            # friction at the state's own normal forces (else the lag's)
     lag_change: float = 0.0       # the last lag's largest change of a normal force
     residual: float = np.inf
     active: int = 0               # node pairs inside the barrier's width
@@ -107,6 +116,7 @@ class StepReport:
     reason: str = ""
     sigma: float = 0.0            # the shift the next step starts from
     history: list = field(default_factory=list)
+    solves: list = field(default_factory=list)   # (live, residual norms) per Newton solve
     friction: Optional[FrictionLag] = None   # the lag the last solve held (friction on)
     evaluation: object = None     # the rod's Evaluation at the last iterate (no barrier)
 
@@ -159,15 +169,19 @@ class EnergySolve:
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
 
     # -- the energy ------------------------------------------------------
-    def _parts(self, r, R, lam, lag, tangent):
+    def _parts(self, r, R, lam, lag, tangent, live=False):
         ev = self.P.evaluate(r, R, lam, tangent=tangent)
         bw = barrier_work(r, self.s, self.barrier, hessian=tangent, dofs=6)
-        fw = None if lag is None else friction_work(r, R, lag, self.mu, self.eps_v, tangent)
+        fw = None
+        if lag is not None:
+            fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent) if live
+                  else friction_work(r, R, lag, self.mu, self.eps_v, tangent))
         f = ev.external.reshape(-1, 6)
         E = ev.internal.energy - float(np.sum(f[:, :3] * (r - self.x0))) + bw.energy
         G = ev.residual + np.pad(bw.gradient, ((0, 0), (0, 3))).ravel()
         if fw is not None:
-            E, G = E + fw.energy, G + fw.gradient.ravel()
+            # live: no potential; E stays the rest's (infinite on contact)
+            E, G = (E if live else E + fw.energy), G + fw.gradient.ravel()
         K = None
         if tangent:
             K = ev.tangent + bw.hessian + (fw.hessian if fw is not None else 0)
@@ -180,10 +194,30 @@ class EnergySolve:
         E, G, _, _, _ = self._parts(r, R, lam, lag, False)
         return E, G
 
+    def residual(self, r, R, lam, lag=None):
+        """The out-of-balance force over the dofs at ``(r, R)``, load
+        factor ``lam``, with the friction of ``lag``'s pairs at the state's
+        own normal forces and normals (:func:`friction_live`): zero on the
+        free dofs at a converged frictional step."""
+        return self._parts(r, R, lam, lag, False, live=True)[1]
+
     # -- one Newton solve at a fixed lag ---------------------------------
-    def _direction(self, K, G, sigma, rep):
+    def _direction(self, K, G, sigma, rep, live=False):
+        """The Newton update ``dy`` on the free dofs and the shift used.
+        ``live``: the tangent is not symmetric (live normal forces in the
+        friction); solved as it is, by a pivoting LU, never shifted."""
         free, o = self.free, self.options
         Kf = K[free][:, free].tocsc()
+        if live:
+            try:
+                x = spla.splu(Kf, permc_spec="COLAMD").solve(-G[free])
+            except RuntimeError:             # exactly singular
+                raise np.linalg.LinAlgError("singular tangent") from None
+            if not np.all(np.isfinite(x)):
+                raise np.linalg.LinAlgError("non-finite Newton update")
+            dy = np.zeros_like(G)
+            dy[free] = x
+            return dy, 0.0
         d = np.abs(Kf.diagonal())
         d[d == 0] = 1.0
         while True:
@@ -207,18 +241,34 @@ class EnergySolve:
             if sigma > 1e12:
                 raise np.linalg.LinAlgError("no positive definite shift below 1e12")
 
-    def newton(self, r, R, lam, lag, sigma, rep, rtol=None):
-        """Newton on the energy at the fixed ``lag`` to the relative
-        residual ``rtol`` (default the options'); returns ``(r, R, sigma)``
-        and fills ``rep`` (``reason`` set on failure)."""
-        o, P, free = self.options, self.P, self.free
+    def newton(self, r, R, lam, lag, sigma, rep, rtol=None, live=False):
+        """Newton at the fixed ``lag`` to the relative residual ``rtol``
+        (default the options'); returns ``(r, R, sigma)`` and fills ``rep``
+        (``reason`` set on failure).
+
+        On the energy (``live`` false): the shifted positive definite
+        tangent, an Armijo line search on the energy.  With ``live``, the
+        friction's normal forces are the state's (:func:`friction_live`,
+        no energy): the exact non-symmetric tangent, an Armijo line search
+        on the residual's norm, at most ``live_iterations``; this is the
+        local solve of a step, from a state the energy solve brought near,
+        and a failure is for the caller to recover from."""
+        o = self.options
         rtol = o.rtol if rtol is None else rtol
+        limit = rep.iterations + o.live_iterations if live else o.max_iterations
+        start = len(rep.history)
+        out = self._newton(r, R, lam, lag, sigma, rep, rtol, live, limit)
+        rep.solves.append((live, rep.history[start:]))
+        return out
+
+    def _newton(self, r, R, lam, lag, sigma, rep, rtol, live, limit):
+        o, P, free = self.options, self.P, self.free
         E = G = K = None
         retries, rn, trial = 0, np.inf, None
         while True:
             if G is None:
                 # the accepted trial was evaluated with its tangent: reused
-                E, G, K, ev, bw = trial or self._parts(r, R, lam, lag, True)
+                E, G, K, ev, bw = trial or self._parts(r, R, lam, lag, True, live)
                 rn = float(np.linalg.norm(G[free]))
                 rep.residual, rep.active, rep.min_gap = rn, bw.active, bw.min_gap
                 rep.evaluation = ev
@@ -228,12 +278,12 @@ class EnergySolve:
                     return r, R, sigma
                 if rn <= rtol * P.force_scale(ev):
                     return r, R, sigma
-                if rep.iterations >= o.max_iterations:
-                    rep.reason = (f"no convergence in {o.max_iterations} iterations "
+                if rep.iterations >= limit:
+                    rep.reason = (f"no convergence in {limit} iterations "
                                   f"(residual {rn:.3e})")
                     return r, R, sigma
             try:
-                dy, used = self._direction(K, G, sigma, rep)
+                dy, used = self._direction(K, G, sigma, rep, live)
             except np.linalg.LinAlgError as err:
                 rep.reason = str(err)
                 return r, R, sigma
@@ -246,13 +296,17 @@ class EnergySolve:
                 try:
                     rt, Rt = P.update(r, R, dy, alpha)
                     # the full step is taken most often: its tangent with it
-                    trial = self._parts(rt, Rt, lam, lag, alpha == 1.0)
+                    trial = self._parts(rt, Rt, lam, lag, alpha == 1.0, live)
                     Et, Gt = trial[:2]
                     if alpha != 1.0:
                         trial = None
                 except ElementRotationError:
                     Et, trial = np.inf, None
-                if np.isfinite(Et):
+                if live:
+                    if np.isfinite(Et) and (float(np.linalg.norm(Gt[free])) ** 2
+                                           <= (1 - 2 * o.armijo * alpha) * rn ** 2):
+                        break
+                elif np.isfinite(Et):
                     if Et <= E + o.armijo * alpha * slope:
                         break
                     if abs(slope) < 1e-11 * max(1.0, abs(E)) and \
@@ -261,7 +315,7 @@ class EnergySolve:
                 alpha *= 0.5
                 rep.halvings += 1
             else:
-                if retries == o.retries:
+                if live or retries == o.retries:
                     rep.reason = (f"no descent along the Newton update, shift {used:.3g} "
                                   f"(residual {rn:.3e})")
                     return r, R, sigma
@@ -269,7 +323,8 @@ class EnergySolve:
                 rep.retries += 1
                 sigma, trial = max(100 * used, 1e-3), None
                 continue
-            sigma = used / 10 if used >= o.shift_start else 0.0
+            if not live:
+                sigma = used / 10 if used >= o.shift_start else 0.0
             r, R, G, retries = rt, Rt, None, 0
             trial = trial if trial is not None and np.isfinite(trial[0]) else None
             rep.iterations += 1
@@ -278,31 +333,46 @@ class EnergySolve:
     def path(self, n_steps, lam_end=1.0, callback=None, budget=None):
         """From the rod's reference state (load factor 0) to ``lam_end`` in
         ``n_steps`` equal steps (:meth:`step`, each from the last with the
-        secant predictor).  ``callback(k, lam, r, R, report)`` after every
-        converged step; ``budget``: wall seconds, checked before each step.
-        Returns :class:`Path`: the converged states, and where and why it
-        stopped (empty when it reached ``lam_end``)."""
+        secant predictor where the last step had the same size).  A step
+        that fails is tried again in halves from the last equilibrium, at
+        most ``options.cuts`` times halved; the path returns to the full
+        step at the next full step's start.  ``callback(k, lam, r, R,
+        report)`` after every converged step (``k`` counts them);
+        ``budget``: wall seconds, checked before each step.  Returns
+        :class:`Path`: the converged states, every step's report (failed
+        tries too), and where and why it stopped (empty when it reached
+        ``lam_end``)."""
         if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
             raise ValueError(f"n_steps must be an integer >= 1, not {n_steps!r}")
         if not np.isfinite(lam_end):
             raise ValueError(f"lam_end must be a finite number, not {lam_end!r}")
         r, R, lam = self.rod.r0.copy(), self.rod.R0.copy(), 0.0
-        dlam, prev, sigma = lam_end / n_steps, None, 0.0
+        dlam, prev, last, sigma = lam_end / n_steps, None, None, 0.0
         out = Path(states=[(0.0, r, R)])
         t0 = time.perf_counter()
-        for k in range(1, n_steps + 1):
+        full, depth = 0, 0                   # full steps done, halvings of this one
+        while full < n_steps:
             if budget is not None and time.perf_counter() - t0 > budget:
                 out.stop = f"the budget of {budget:g} s ran out at load factor {lam:.6g}"
                 break
-            r1, R1, rep = self.step(r, R, lam, dlam, prev, sigma)
+            target = (full + 1) * dlam
+            d = dlam / 2 ** depth
+            r1, R1, rep = self.step(r, R, lam, d, prev if last == d else None, sigma)
             out.reports.append(rep)
             if not rep.converged:
-                out.stop = f"step {k} (load factor {lam + dlam:.6g}): {rep.reason}"
-                break
-            prev, (r, R), lam, sigma = (r, R), (r1, R1), lam + dlam, rep.sigma
+                if depth == self.options.cuts:
+                    out.stop = (f"step to load factor {lam + d:.6g} (step {d:.3g}, "
+                                f"halved {depth} times): {rep.reason}")
+                    break
+                depth += 1
+                continue
+            lam = lam + d
+            if abs(lam - target) <= 1e-9 * abs(dlam):
+                lam, full, depth = target, full + 1, 0
+            prev, last, (r, R), sigma = (r, R), d, (r1, R1), rep.sigma
             out.states.append((lam, r, R))
             if callback is not None:
-                callback(k, lam, r, R, rep)
+                callback(len(out.states) - 1, lam, r, R, rep)
         return out
 
     # -- one load step ---------------------------------------------------
@@ -327,37 +397,72 @@ class EnergySolve:
         if r1 is None:
             r1, R1 = P.update(r, R, p)
         lam1 = lam + dlam
-        lag = friction_lag(r, R, r, R, self.s, self.barrier) if self.mu else None
-        held = None if lag is None else lag.pairs
-        relax, last = 1.0, np.inf
-        tight = not self.mu
-        for _ in range(o.max_lags + 1 if self.mu else 1):
-            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
-                                        None if tight else o.lag_rtol)
-            rep.lags += 1
+        if not self.mu:
+            r1, R1, sigma = self.newton(r1, R1, lam1, None, sigma, rep)
+            rep.lags = 1
             if rep.reason:
                 return r1, R1, rep
-            if not self.mu:
-                break
-            # the lag at the state (unrelaxed: its normal forces are the
-            # state's) decides whether the lag has settled
-            new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, 1.0, held)
-            change = lag_change(lag, new, r1.shape[0])
-            rep.lag_change = change
-            if change <= o.lag_tol * new.force.max(initial=0.0):
-                if tight:                      # settled at the state solved to rtol
-                    break
-                lag, tight = new, True         # settled: solved to rtol at it, checked again
-                continue
-            if change > LAG_STALL * last and relax == 1.0:
-                # the lag alternates or creeps: relaxed from now on (the
-                # same fixed point)
-                relax = o.lag_relax
-            if relax != 1.0:
-                new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, relax, held)
-            lag, last = new, change
-        else:
-            rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
+            rep.converged, rep.sigma = True, sigma
             return r1, R1, rep
+        # friction: the lag's normal forces brought to a fixed point on the
+        # energy (Aitken-relaxed) until they change by less than live_tol
+        # of the largest; then Newton at the state's own (live) normal
+        # forces, until the state is an equilibrium with its own lag
+        lag = friction_lag(r, R, r, R, self.s, self.barrier)
+        held, relax = lag.pairs, Relaxation(r.shape[0])
+        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.live_tol, sigma, rep)
+        if settled is None:
+            return r1, R1, rep
+        r1, R1, lag, sigma = settled
+        for _ in range(o.max_lags):
+            # pairs, normals and contact points at the state
+            lag = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
+            before = rep.iterations
+            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep, live=True)
+            if rep.reason:
+                break
+            if rep.iterations == before:
+                # an equilibrium with its own lag, normal forces its own
+                rep.converged, rep.sigma, rep.friction, rep.lag_change = True, sigma, lag, 0.0
+                rep.live = True
+                return r1, R1, rep
+        else:
+            rep.reason = f"no equilibrium with its own lag in {o.max_lags} live solves"
+        # the live solve failed: the lag settled to lag_tol instead, solved
+        # to rtol there and checked again
+        rep.fallbacks += 1
+        rep.reason = ""
+        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.lag_tol, sigma, rep,
+                               tight=True)
+        if settled is None:
+            return r1, R1, rep
+        r1, R1, lag, sigma = settled
         rep.converged, rep.sigma, rep.friction = True, sigma, lag
         return r1, R1, rep
+
+    def _settle(self, r, R, r1, R1, lam1, lag, held, relax, tol, sigma, rep, tight=False):
+        """The lag's normal forces to a fixed point, from ``(r1, R1)`` in
+        the step from ``(r, R)``: solve on the energy at the lag (to
+        lag_rtol), lag again at the state, until no force changes by more
+        than ``tol`` times the largest; ``tight``: then solved to rtol at
+        the settled lag and checked again.  Returns ``(r1, R1, lag,
+        sigma)``, or None with ``rep.reason`` set."""
+        o = self.options
+        final = False
+        for _ in range(o.max_lags):
+            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
+                                        None if final else o.lag_rtol)
+            rep.lags += 1
+            if rep.reason:
+                return None
+            new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
+            change = lag_change(lag, new, r1.shape[0])
+            rep.lag_change = change
+            if change <= tol * new.force.max(initial=0.0):
+                if final or not tight:
+                    return r1, R1, lag, sigma
+                final, lag = True, new
+                continue
+            lag = relax(new, lag)
+        rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
+        return None

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.contact.barrier import (Barrier, barrier_work, friction_lag, friction_work,
+from skfem_rod.contact.barrier import (Barrier, barrier_work, friction_lag, friction_live,
                                        potential)
 from skfem_rod.contact.crossing import min_distance
 from skfem_rod.contact.search import arclength_period
-from skfem_rod.minimize import EnergyOptions, EnergySolve
+from skfem_rod.minimize import EnergyOptions, EnergySolve, StepReport
 from skfem_rod.topology import topology
 
 from helpers import load_demo
@@ -131,9 +131,10 @@ def _pressed_hairpin(mu, steps=4):
 def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
     """Friction resists the pull along the arm (the end moves less along x
     with mu = 0.3 than without, and less still with mu = 1); at every
-    converged step the state is an equilibrium with the friction of the
-    lag it settled at, and every pair's friction force is within Coulomb's
-    bound at the pair's actual normal force there, to the lag tolerance."""
+    converged step the state is an equilibrium with the friction of its
+    own lag at its own normal forces and normals, every pair's friction
+    force is within Coulomb's bound there, normal to the normal, and the
+    solves at the live normal forces converge quadratically."""
     moved = {}
     for mu in (0.0, 0.3, 1.0):
         solve, rod, r, R, reps = _pressed_hairpin(mu)
@@ -144,19 +145,72 @@ def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
             assert all(rep.friction is None for rep in reps)
             continue
         lag = reps[-1].friction
-        assert lag.pairs.shape[0] > 0 and reps[-1].lags >= 2
-        _, G = solve.energy(r, R, 1.0, lag)
+        assert lag.pairs.shape[0] > 0
+        G = solve.residual(r, R, 1.0, lag)
         ev = solve.P.evaluate(r, R, 1.0, tangent=False)
         assert np.linalg.norm(G[solve.free]) <= solve.options.rtol * solve.P.force_scale(ev)
-        w = friction_work(r, R, lag, mu, solve.eps_v, hessian=False)
+        # the lag at the state is the one it converged with (no new pair)
+        again = friction_lag(r, R, r, R, solve.s, solve.barrier, lag)
+        assert np.array_equal(again.pairs, lag.pairs)
+        w = friction_live(r, R, lag, solve.barrier, mu, solve.eps_v, jacobian=False)
         i, j = lag.pairs[:, 0], lag.pairs[:, 1]
-        g = np.linalg.norm(r[i] - r[j], axis=1) - solve.barrier.distance
+        d = r[i] - r[j]
+        g = np.linalg.norm(d, axis=1) - solve.barrier.distance
         lam_now = np.where(g < solve.barrier.width, -potential(
             np.minimum(g, solve.barrier.width), solve.barrier.width,
             solve.barrier.stiffness)[1], 0.0)
-        slack = solve.options.lag_tol * lam_now.max()
-        assert np.all(np.linalg.norm(w.force, axis=1) <= mu * (lam_now + slack) * (1 + 1e-12))
+        f = np.linalg.norm(w.force, axis=1)
+        assert np.all(f <= mu * lam_now * (1 + 1e-12))
+        n = d / np.linalg.norm(d, axis=1)[:, None]
+        assert np.abs(np.einsum("ka,ka->k", w.force, n)).max() <= 1e-12 * f.max()
+        # the live solves converge quadratically: relative to a solve's first
+        # residual, e_{k+1} <= e_k^2 (a linear rate of 0.1 fails this below
+        # e_k = 0.1), up to the residual the solve stops at
+        tested = 0
+        for rep in reps:
+            assert rep.live
+            stop = solve.options.rtol * solve.P.force_scale(rep.evaluation)
+            for live, hist in rep.solves:
+                if not live or len(hist) < 3:
+                    continue
+                h = np.array(hist)
+                e = h / h[0]
+                above = h[1:] > stop
+                assert np.all(e[1:][above] <= e[:-1][above] ** 2), hist
+                tested += int(np.sum(above & (e[:-1] < 0.1)))
+        assert tested >= 3
     assert moved[0.0] > moved[0.3] > moved[1.0] >= 0.0
+
+
+def test_a_failed_step_is_tried_again_in_halves():
+    """A step that fails is tried in halves from the last equilibrium (the
+    secant predictor only after a converged step of the same size), the path returns
+    to full steps at the next full step, and with no halving allowed it
+    stops saying where and why."""
+    rod, eps, barrier = _hairpin()
+    calls = []
+
+    class Capped(EnergySolve):
+        def step(self, r, R, lam, dlam, previous=None, sigma=0.0):
+            calls.append((lam, dlam, previous is not None))
+            if dlam > 0.3:
+                return r, R, StepReport(converged=False, reason="too long a step")
+            return super().step(r, R, lam, dlam, previous, sigma)
+
+    solve = Capped(rod, barrier, eps)
+    path = solve.path(2)
+    assert path.converged, path.stop
+    assert [lam for lam, _, _ in path.states] == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert [q.converged for q in path.reports] == [False, True, True, False, True, True]
+    assert calls == [(0.0, 0.5, False), (0.0, 0.25, False), (0.25, 0.25, True),
+                     (0.5, 0.5, False), (0.5, 0.25, True), (0.75, 0.25, True)]
+    # the halved path is the path of four steps
+    _, r4, _ = EnergySolve(rod, barrier, eps).path(4).states[-1]
+    assert np.allclose(path.states[-1][1], r4, atol=1e-9)
+    calls.clear()
+    stopped = Capped(rod, barrier, eps, options=EnergyOptions(cuts=0)).path(2)
+    assert not stopped.converged and len(stopped.states) == 1
+    assert "load factor 0.5" in stopped.stop and "too long a step" in stopped.stop
 
 
 def test_an_unloaded_closed_ring_stays_put():

@@ -40,7 +40,7 @@ pushes with ``force`` (``|b'(g_hat/2)| = (ln 2 + 1/2) kappa g_hat``).
 Everything is vectorized over pairs (``scipy.spatial.cKDTree.query_pairs``
 for the pairs within reach).
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -200,22 +200,27 @@ def step_bound(x, dx, s, barrier, fraction=0.8):
 
 # -- friction ---------------------------------------------------------------
 #
-# Coulomb friction at the node pairs as in IPC (Li et al. 2020): the
-# normal force, the contact normal and the pairs are lagged (taken at a
-# configuration of the step and held while Newton solves), and the friction
-# is the gradient of the dissipation potential
+# Coulomb friction at the node pairs after IPC (Li et al. 2020).  Each
+# pair's contact point -- the two nodes' midpoint where the pair's history
+# starts -- is a material point of both sections (an arm in each body frame,
+# held for the step, :func:`friction_lag`); the two points coincided then,
+# so the slip u_k is their separation now, projected on the plane normal to
+# the normal (carried with the sections' finite rotations: a rigid motion
+# gives none).  The friction force on the points is
 #
-#     D = sum_k mu lambda_k f0(|u_k|),
+#     phi_k = mu lambda_k f1(|u_k|) u_k / |u_k|,
 #
-# u_k the slip over the step of the pair's two surface points (the points of
-# the two sections facing each other at the lag, carried with the sections'
-# rotations: exact for finite rotations), projected on the plane normal to
-# the lagged normal; f0 smooths |u| below eps_v (f0' = f1: 2y/eps_v -
-# y^2/eps_v^2 below eps_v, 1 above).  At a fixed point of the lag the
-# friction force of a pair is mu lambda f1(|u|) along -u: at most mu lambda,
-# equal to it where the pair slips by eps_v or more (Coulomb's law, the
-# stick state regularized by a slip of at most eps_v, as the paper's
-# tangential penalty regularizes it).
+# f1 smoothing |u| below eps_v (2y/eps_v - y^2/eps_v^2 below eps_v, 1
+# above): at most mu lambda, equal to it where the pair slips by eps_v or
+# more (Coulomb's law, the stick state regularized by a slip of at most
+# eps_v, as the paper's tangential penalty regularizes it).
+#
+# With the normal force lambda_k and the normal lagged (:class:`FrictionLag`)
+# the force is the gradient of IPC's dissipation potential
+# D = sum_k mu lambda_k f0(|u_k|), f0' = f1 (:func:`friction_work`, Newton on
+# the energy).  With both the state's own (:func:`friction_live`) it is no
+# potential's gradient, and Coulomb's law holds at the state itself; the
+# solve (skfem_rod.minimize) ends there.
 
 
 @dataclass(frozen=True)
@@ -226,8 +231,6 @@ class FrictionLag:
     force: np.ndarray     # (k,) normal force -b'(g) >= 0 at the lag
     arm_i: np.ndarray     # (k, 3) the contact point on section i, in its body frame
     arm_j: np.ndarray     # (k, 3) the contact point on section j, in its body frame
-    start_i: np.ndarray   # (k, 3) that point of section i at the step's start
-    start_j: np.ndarray   # (k, 3)
 
 
 def _pair_lookup(pairs, n_nodes, keys_of):
@@ -253,28 +256,67 @@ def lag_change(a, b, n_nodes):
     return float(max(np.abs(b.force - was).max(initial=0.0), a.force[gone].max(initial=0.0)))
 
 
-def friction_lag(x, R, x0, R0, s, barrier, previous=None, relax=1.0, held=None):
+class Relaxation:
+    """Aitken's dynamic relaxation of the lag's normal forces (Irons &
+    Tuck 1969; Kuettler & Wall 2008 for coupled solves): the fixed-point
+    residual ``rho = lambda(state) - lambda(lag)`` per pair, and the next
+    lag's forces ``lambda(lag) + omega rho`` with ``omega`` the secant
+    estimate ``-omega_last rho_last . (rho - rho_last) / |rho -
+    rho_last|^2``, kept in ``[lower, upper]``.  A lag that alternates
+    (``omega`` falls below 1) and one that creeps (above 1) both settle
+    faster than unrelaxed; the fixed point is the same.  Pairs are matched
+    by their nodes; a pair missing from a lag counts with force 0 there."""
+
+    def __init__(self, n_nodes, omega=1.0, lower=0.05, upper=10.0):
+        self.n_nodes, self.omega, self.lower, self.upper = n_nodes, omega, lower, upper
+        self.last = None                      # (pairs, rho) of the last lag
+
+    def __call__(self, new, previous):
+        """The next lag: ``new`` (the lag at the state solved with
+        ``previous``) with its normal forces relaxed."""
+        at = _pair_lookup(new.pairs, self.n_nodes, previous.pairs)
+        was = np.zeros(new.force.size)
+        was[at >= 0] = previous.force[at[at >= 0]]
+        rho = new.force - was
+        if self.last is not None:
+            pairs, rho_last = self.last
+            at = _pair_lookup(new.pairs, self.n_nodes, pairs)
+            old = np.zeros(rho.size)
+            old[at >= 0] = rho_last[at[at >= 0]]
+            d = rho - old
+            dd = float(d @ d)
+            if dd > 0:
+                self.omega = float(np.clip(-self.omega * float(old @ d) / dd,
+                                           self.lower, self.upper))
+        self.last = (new.pairs, rho)
+        return replace(new, force=np.maximum(was + self.omega * rho, 0.0))
+
+
+def _points(x, R, i, j):
+    """The midpoint of nodes ``i``, ``j`` at ``(x, R)`` as a material point
+    of both sections: its arms in the two body frames and its place."""
+    mid = 0.5 * (x[i] + x[j])
+    arm_i = np.einsum("kba,kb->ka", R[i], mid - x[i])        # R_i^T (mid - x_i)
+    arm_j = np.einsum("kba,kb->ka", R[j], mid - x[j])
+    return arm_i, arm_j, mid
+
+
+def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
     """The :class:`FrictionLag` at the configuration ``(x, R)`` of a step
     that started at ``(x0, R0)`` (node positions ``(n, 3)``, rotations
     ``(n, 3, 3)``): the pairs inside the barrier's width, their normal
-    forces and normals there, and the contact point -- the midpoint of the
-    two nodes, on the touching surfaces to within the barrier's width --
-    as a material point of each of the two sections.  The two material
-    points coincide at the lag, so a rigid motion of the step (any
-    rotation) gives them the same displacement: no slip.
+    forces and normals there, and each pair's contact point as a material
+    point of both sections (its arms in the two body frames).
 
-    With a ``previous`` lag, the normal forces are relaxed towards it:
-    ``relax lambda + (1 - relax) lambda_previous`` per node pair (0 for a
-    pair the previous lag did not have); a fixed point is the same, and a
-    lag that alternates between two states settles.
-
-    ``held``: the node pairs (``(k, 2)``) in contact at the step's start.
-    A pair that is not among them came into contact during the step, and
-    its two points have no common history before that: their slip is
-    measured from where they met -- the first lag of the step that has
-    them (``previous`` carries it from lag to lag); from the next step on
-    they are held and slip from the step's start.  Without ``held`` every
-    pair slips from the step's start (``x0``, ``R0``)."""
+    The contact point is the midpoint of the two nodes -- on the touching
+    surfaces to within the barrier's width -- where the pair's history
+    starts: at the step's start for the pairs in ``held`` (``(k, 2)``, in
+    contact then; all pairs when ``held`` is None), and where the pair is
+    now for the others (they met during the step: their points have no
+    common history before that).  A pair that ``previous`` (an earlier lag
+    of the step) has keeps its points.  The two material points coincide
+    where the history starts, so the slip is their separation now, and a
+    rigid motion (any rotation) moves them together: no slip."""
     bw = barrier
     pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
     d = x[pr[:, 0]] - x[pr[:, 1]]
@@ -284,84 +326,178 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, relax=1.0, held=None):
     n = d / dist[:, None]
     lam = -potential(dist - bw.distance, bw.width, bw.stiffness)[1]
     i, j = pr[:, 0], pr[:, 1]
-    if previous is not None and relax != 1.0:
-        at = _pair_lookup(pr, x.shape[0], previous.pairs)
-        was = np.zeros_like(lam)
-        was[at >= 0] = previous.force[at[at >= 0]]
-        lam = relax * lam + (1.0 - relax) * was
-    half = 0.5 * dist[:, None] * n
-    arm_i = np.einsum("kba,kb->ka", R[i], -half)             # R_i^T (x_mid - x_i)
-    arm_j = np.einsum("kba,kb->ka", R[j], half)
-    start_i = x0[i] + np.einsum("kab,kb->ka", R0[i], arm_i)
-    start_j = x0[j] + np.einsum("kab,kb->ka", R0[j], arm_j)
+    arm_i, arm_j, _ = _points(x0, R0, i, j)
     if held is not None:
         new = _pair_lookup(pr, x.shape[0], np.asarray(held).reshape(-1, 2)) < 0
-        mid = 0.5 * (x[i] + x[j])
-        start_i[new] = mid[new]
-        start_j[new] = mid[new]
-        if previous is not None:
-            # met at an earlier lag of this step: the points where they met
-            at = _pair_lookup(pr, x.shape[0], previous.pairs)
-            met = new & (at >= 0)
-            k = at[met]
-            arm_i[met], arm_j[met] = previous.arm_i[k], previous.arm_j[k]
-            start_i[met], start_j[met] = previous.start_i[k], previous.start_j[k]
-    return FrictionLag(pr, n, lam, arm_i, arm_j, start_i, start_j)
+        arm_i[new], arm_j[new], _ = _points(x, R, i[new], j[new])
+    if previous is not None:
+        at = _pair_lookup(pr, x.shape[0], previous.pairs)
+        had = at >= 0
+        k = at[had]
+        arm_i[had], arm_j[had] = previous.arm_i[k], previous.arm_j[k]
+    return FrictionLag(pr, n, lam, arm_i, arm_j)
 
 
 class FrictionWork(NamedTuple):
-    """The friction potential at one configuration."""
-    energy: float
+    """The friction at one configuration."""
+    energy: float             # the potential D (nan with live normal forces: none)
     gradient: np.ndarray      # (n, 6): positions, then spins
     hessian: object           # sparse (6 n, 6 n), or None
     force: np.ndarray         # (k, 3) friction force on node i's section (-dD/du)
     slip: np.ndarray          # (k,) |u|
 
 
+def _slip(x, R, lag):
+    """The pairs' contact points on both sections at ``(x, R)`` (``c_i``,
+    ``c_j``, from the nodes) and their separation ``delta``: the slip
+    before its projection on the tangent plane.  The kinematics of both
+    :func:`friction_work` and :func:`friction_live`."""
+    i, j = lag.pairs[:, 0], lag.pairs[:, 1]
+    c_i = np.einsum("kab,kb->ka", R[i], lag.arm_i)
+    c_j = np.einsum("kab,kb->ka", R[j], lag.arm_j)
+    delta = (x[i] + c_i) - (x[j] + c_j)           # the points coincided: the slip
+    return i, j, c_i, c_j, delta
+
+
+def _smoothed(y, eps_v):
+    """Coulomb's law smoothed below the slip ``eps_v``, at slips ``y``:
+    ``f0`` (the potential per unit ``mu lambda``), ``f1 / y`` and ``c``
+    with ``(f1' y - f1) / y^3 u u^T = c (u/y)(u/y)^T``."""
+    small = y < eps_v
+    f0 = np.where(small, -y ** 3 / (3 * eps_v ** 2) + y ** 2 / eps_v + eps_v / 3, y)
+    ratio = np.where(small, 2 / eps_v - y / eps_v ** 2, 1 / np.maximum(y, 1e-300))
+    c = np.where(small, -y / eps_v ** 2, -1 / np.maximum(y, eps_v))
+    return f0, ratio, c
+
+
+def _law(u, y, ratio, c, ml):
+    """``d phi / d u`` per pair, ``phi = ml f1(|u|) u / |u|`` the friction
+    force's magnitude along the slip: ``ml (f1/y I + c (u/y)(u/y)^T)``."""
+    uh = u / np.maximum(y, 1e-300)[:, None]           # the slip's direction (0 at rest)
+    return ml[:, None, None] * (ratio[:, None, None] * np.eye(3)
+                                + c[:, None, None] * uh[:, :, None] * uh[:, None, :])
+
+
+def _points_jacobian(c_i, c_j):
+    """``d delta`` per pair over the positions and spins of nodes i and j
+    (``(k, 3, 12)``; spatial spins turn the arms: ``dc = w x c``)."""
+    k = c_i.shape[0]
+    eye = np.broadcast_to(np.eye(3), (k, 3, 3))
+    return np.concatenate([eye, -hat(c_i), -eye, hat(c_j)], axis=2)
+
+
+def _scatter(grad, i, j, c_i, c_j, phi):
+    """Adds the pairs' force ``phi`` (on the contact points) to the
+    generalized force: on positions and, through the arms, spins."""
+    np.add.at(grad[:, :3], i, phi)
+    np.add.at(grad[:, :3], j, -phi)
+    np.add.at(grad[:, 3:], i, cross(c_i, phi))
+    np.add.at(grad[:, 3:], j, -cross(c_j, phi))
+
+
+def _arms_turn(blk, c_i, c_j, phi):
+    """Adds to the pair blocks the derivative of the spins' force
+    ``c x phi`` as the spins turn the arms, ``phi`` held:
+    ``d(c x phi)/dw = c phi^T - (c . phi) I`` (not symmetric)."""
+    blk[:, 3:6, 3:6] += c_i[:, :, None] * phi[:, None, :] \
+        - np.einsum("ka,ka->k", c_i, phi)[:, None, None] * np.eye(3)
+    blk[:, 9:12, 9:12] -= c_j[:, :, None] * phi[:, None, :] \
+        - np.einsum("ka,ka->k", c_j, phi)[:, None, None] * np.eye(3)
+
+
+def _assemble(blk, i, j, n_nodes):
+    """The sparse matrix of 12 x 12 pair blocks ``blk``."""
+    dof = np.concatenate([i[:, None] * 6 + np.arange(6), j[:, None] * 6 + np.arange(6)], 1)
+    rows = np.repeat(dof, 12, axis=1).ravel()
+    cols = np.tile(dof, (1, 12)).ravel()
+    return sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(6 * n_nodes, 6 * n_nodes)).tocsc()
+
+
 def friction_work(x, R, lag, mu, eps_v, hessian=True):
     """The dissipation potential ``D`` of :class:`FrictionLag` ``lag`` at
     ``(x, R)`` (module notes above), friction coefficient ``mu``, slip
-    smoothing ``eps_v``: energy, gradient and Hessian over the 6 dofs per
-    node (positions; spatial spins, ``R <- exp(w) R``).  The Hessian is
-    the exact one of ``D`` in the surface points' slip times their
-    Jacobian on both sides (positive semi-definite); the second derivative
-    of the rotation acting on the arm is left out."""
+    smoothing ``eps_v``, the normal forces and normals the lag's:
+    energy, gradient and Hessian over the 6 dofs per node (positions;
+    spatial spins, ``R <- exp(w) R``).  The Hessian is the exact one of
+    ``D`` in the surface points' slip times their Jacobian on both sides
+    (positive semi-definite); the second derivative of the rotation acting
+    on the arm is left out."""
     n_nodes = x.shape[0]
     grad = np.zeros((n_nodes, 6))
     k = lag.pairs.shape[0]
     if k == 0 or mu == 0:
         H = sp.csc_matrix((6 * n_nodes, 6 * n_nodes)) if hessian else None
         return FrictionWork(0.0, grad, H, np.zeros((k, 3)), np.zeros(k))
-    i, j = lag.pairs[:, 0], lag.pairs[:, 1]
-    c_i = np.einsum("kab,kb->ka", R[i], lag.arm_i)
-    c_j = np.einsum("kab,kb->ka", R[j], lag.arm_j)
-    delta = (x[i] + c_i - lag.start_i) - (x[j] + c_j - lag.start_j)
+    i, j, c_i, c_j, delta = _slip(x, R, lag)
     nrm = lag.normal
     u = delta - np.einsum("ka,ka->k", delta, nrm)[:, None] * nrm
     y = np.linalg.norm(u, axis=1)
-    small = y < eps_v
-    f0 = np.where(small, -y ** 3 / (3 * eps_v ** 2) + y ** 2 / eps_v + eps_v / 3, y)
-    ratio = np.where(small, 2 / eps_v - y / eps_v ** 2, 1 / np.maximum(y, 1e-300))  # f1 / y
+    f0, ratio, c = _smoothed(y, eps_v)
     ml = mu * lag.force
     phi = (ml * ratio)[:, None] * u                        # dD/d(delta), in the plane
-    np.add.at(grad[:, :3], i, phi)
-    np.add.at(grad[:, :3], j, -phi)
-    np.add.at(grad[:, 3:], i, cross(c_i, phi))
-    np.add.at(grad[:, 3:], j, -cross(c_j, phi))
+    _scatter(grad, i, j, c_i, c_j, phi)
     H = None
     if hessian:
-        P = np.eye(3) - nrm[:, :, None] * nrm[:, None, :]
-        uh = u / np.maximum(y, 1e-300)[:, None]           # the slip's direction (0 at rest)
-        # (f1' y - f1) / y^3 u u^T = c (u/y)(u/y)^T, c = -y / eps_v^2 or -1 / y
-        c = np.where(small, -y / eps_v ** 2, -1 / np.maximum(y, eps_v))
-        Hu = ml[:, None, None] * (ratio[:, None, None] * np.eye(3)
-                                  + c[:, None, None] * uh[:, :, None] * uh[:, None, :])
-        Hd = P @ Hu @ P
-        J = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -hat(c_i),
-                            -np.broadcast_to(np.eye(3), (k, 3, 3)), hat(c_j)], axis=2)
-        blk = np.einsum("kai,kab,kbj->kij", J, Hd, J)      # (k, 12, 12)
-        dof = np.concatenate([i[:, None] * 6 + np.arange(6), j[:, None] * 6 + np.arange(6)], 1)
-        rows = np.repeat(dof, 12, axis=1).ravel()
-        cols = np.tile(dof, (1, 12)).ravel()
-        H = sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(6 * n_nodes, 6 * n_nodes)).tocsc()
+        PJ = (np.eye(3) - nrm[:, :, None] * nrm[:, None, :]) @ _points_jacobian(c_i, c_j)
+        blk = np.einsum("kai,kab,kbj->kij", PJ, _law(u, y, ratio, c, ml), PJ)
+        _arms_turn(blk, c_i, c_j, phi)
+        H = _assemble(blk, i, j, n_nodes)
     return FrictionWork(float(np.sum(ml * f0)), grad, H, -phi, y)
+
+
+def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True):
+    """The friction of ``lag``'s pairs and contact points with the normal
+    force and normal *live*: each pair's ``lambda = -b'(g)`` and normal
+    ``(x_i - x_j) / |x_i - x_j|`` at ``(x, R)``, not the lag's.  Coulomb's
+    law then holds at the state itself (``|f_T| <= mu lambda``, normal to
+    the actual normal), and the friction is no potential's gradient: the
+    force ``phi = mu lambda f1(|u|) u / |u|`` on the contact points, ``u``
+    the separation of the two points projected on the plane normal to the
+    live normal.  Its Jacobian (``jacobian``) is exact and not symmetric:
+    ``phi``'s change with the slip, with the normal and with the normal
+    force, and the rotation acting on the arms.  ``energy`` is nan; a pair
+    at or inside the contact distance gives an infinite force."""
+    n_nodes = x.shape[0]
+    grad = np.zeros((n_nodes, 6))
+    k = lag.pairs.shape[0]
+    if k == 0 or mu == 0:
+        H = sp.csc_matrix((6 * n_nodes, 6 * n_nodes)) if jacobian else None
+        return FrictionWork(np.nan, grad, H, np.zeros((k, 3)), np.zeros(k))
+    i, j, c_i, c_j, delta = _slip(x, R, lag)
+    d = x[i] - x[j]
+    dist = np.linalg.norm(d, axis=1)
+    g = dist - barrier.distance
+    if g.min() <= 0:
+        return FrictionWork(np.nan, np.full((n_nodes, 6), np.inf), None,
+                            np.zeros((k, 3)), np.zeros(k))
+    nrm = d / dist[:, None]
+    on = g < barrier.width
+    lam, dlam = np.zeros(k), np.zeros(k)
+    _, b1, b2 = potential(g[on], barrier.width, barrier.stiffness)
+    lam[on], dlam[on] = -b1, -b2                          # lambda and d lambda / d g
+    dn = np.einsum("ka,ka->k", delta, nrm)
+    u = delta - dn[:, None] * nrm
+    y = np.linalg.norm(u, axis=1)
+    _, ratio, c = _smoothed(y, eps_v)
+    ml = mu * lam
+    phi = (ml * ratio)[:, None] * u
+    _scatter(grad, i, j, c_i, c_j, phi)
+    H = None
+    if jacobian:
+        J = _points_jacobian(c_i, c_j)
+        P = np.eye(3) - nrm[:, :, None] * nrm[:, None, :]
+        # du = P d(delta) - ((n . delta) I + n delta^T) dn,  dn = P (dx_i - dx_j) / dist
+        A = (dn[:, None, None] * np.eye(3) + nrm[:, :, None] * delta[:, None, :]) @ P \
+            / dist[:, None, None]
+        Ju = P @ J
+        Ju[:, :, 0:3] -= A
+        Ju[:, :, 6:9] += A
+        blk = np.einsum("kai,kab,kbj->kij", J, _law(u, y, ratio, c, ml), Ju)
+        _arms_turn(blk, c_i, c_j, phi)
+        # the normal force's own change: lambda(g), g = |x_i - x_j| - D
+        dF = np.einsum("kai,ka->ki", J, (mu * ratio)[:, None] * u)   # dF / d lambda
+        dg = dlam[:, None] * nrm                          # d lambda / d x_i
+        blk[:, :, 0:3] += dF[:, :, None] * dg[:, None, :]
+        blk[:, :, 6:9] -= dF[:, :, None] * dg[:, None, :]
+        H = _assemble(blk, i, j, n_nodes)
+    return FrictionWork(np.nan, grad, H, -phi, y)
