@@ -45,7 +45,6 @@ import bench_plectoneme as bp  # noqa: E402
 
 from skfem_rod.contact.barrier import (Barrier, friction_live, friction_work,  # noqa: E402
                                        potential)
-from skfem_rod.contact.crossing import min_distance  # noqa: E402
 from skfem_rod.minimize import EnergySolve  # noqa: E402
 
 
@@ -64,11 +63,10 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
     def record(k, lam, r, R, rep):
         ev = rep.evaluation                      # the rod's, at the converged state
         reaction = (ev.residual + ev.external).reshape(-1, 6)[end]
-        md = min_distance(rod.mesh, r, bp.RADIUS, barrier.exclusion)
         rec = dict(coulomb=coulomb_excess(solve, r, R, rep), turns=lam * bp.TURNS, x_end=float(r[end, 0]), torque=float(reaction[3]),
                    contacts=rep.active, iterations=rep.iterations, lags=rep.lags, fallbacks=rep.fallbacks, live=rep.live,
                    shifts=rep.shifts, halvings=rep.halvings,
-                   true_penetration=float((2 * bp.RADIUS - md.distance) / bp.RADIUS),
+                   true_penetration=float((2 * bp.RADIUS - rep.true_distance) / bp.RADIUS),
                    min_gap=float(rep.min_gap / bp.RADIUS),
                    wall=time.perf_counter() - t0)
         recs.append(rec)

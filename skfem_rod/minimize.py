@@ -19,7 +19,8 @@ One step, in plain sight::
         lag the friction at the step's start (pairs, normal forces, normals;
             each pair's contact point a material point of both sections)
         settle the lag's normal forces to live_tol (_settle):
-            Newton on E + D to lag_rtol; lag again at the state; Aitken's
+            Newton on E + D to near_rtol (a globalization only: the live
+            solve finishes); lag again at the state; Aitken's
             relaxation of the forces (barrier.Relaxation); until no force
             changes by more than live_tol times the largest
         repeat (at most max_lags):
@@ -31,8 +32,14 @@ One step, in plain sight::
             done when the state is an equilibrium with its own lag (the
                 live Newton takes no iteration): Coulomb's law holds at
                 the state's own normal forces
-        if the live Newton fails: settle the lag to lag_tol instead, solve
-            to rtol at it and check it again (Coulomb to lag_tol)
+        if the live Newton fails: settle the lag to lag_tol instead (its
+            solves to lag_rtol), solve to rtol at it and check it again
+            (Coulomb to lag_tol)
+
+    a solved step has converged if the strands' true least distance
+        (crossing.min_distance: closest points of element pairs) is at
+        least 2 radius (1 - penetration_tol): the barrier holds the nodes,
+        and the centrelines can sag between them
 
 Newton on E (the energy; with friction, E + D at the lag):
     converged when |G_free| <= rtol * force scale
@@ -58,6 +65,7 @@ import scipy.sparse.linalg as spla
 
 from .contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work, friction_lag,
                               friction_live, friction_work, lag_change, step_bound)
+from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .problem import Problem
 
@@ -78,13 +86,15 @@ class EnergyOptions:
     max_lags: int = 60
     lag_tol: float = 1e-3
     lag_rtol: float = 1e-5
+    near_rtol: float = 0.1
     live_iterations: int = 80
     cuts: int = 3
+    penetration_tol: float = 1e-3
     live_tol: float = 0.3
 
     def __post_init__(self):
         for name in ("rtol", "armijo", "max_spin", "fraction", "shift_start", "lag_tol",
-                     "lag_rtol", "live_tol"):
+                     "lag_rtol", "live_tol", "near_rtol", "penetration_tol"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"EnergyOptions {name} must be a finite number > 0, not {v!r}")
@@ -119,6 +129,7 @@ class StepReport:
     solves: list = field(default_factory=list)   # (live, residual norms) per Newton solve
     friction: Optional[FrictionLag] = None   # the lag the last solve held (friction on)
     evaluation: object = None     # the rod's Evaluation at the last iterate (no barrier)
+    true_distance: float = np.nan  # the strands' true least distance at the solved state
 
 
 @dataclass
@@ -402,15 +413,16 @@ class EnergySolve:
             rep.lags = 1
             if rep.reason:
                 return r1, R1, rep
-            rep.converged, rep.sigma = True, sigma
-            return r1, R1, rep
+            rep.sigma = sigma
+            return r1, R1, self._checked(r1, rep)
         # friction: the lag's normal forces brought to a fixed point on the
         # energy (Aitken-relaxed) until they change by less than live_tol
         # of the largest; then Newton at the state's own (live) normal
         # forces, until the state is an equilibrium with its own lag
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
         held, relax = lag.pairs, Relaxation(r.shape[0])
-        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.live_tol, sigma, rep)
+        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.live_tol, o.near_rtol,
+                               sigma, rep)
         if settled is None:
             return r1, R1, rep
         r1, R1, lag, sigma = settled
@@ -423,27 +435,41 @@ class EnergySolve:
                 break
             if rep.iterations == before:
                 # an equilibrium with its own lag, normal forces its own
-                rep.converged, rep.sigma, rep.friction, rep.lag_change = True, sigma, lag, 0.0
-                rep.live = True
-                return r1, R1, rep
+                rep.sigma, rep.friction, rep.lag_change, rep.live = sigma, lag, 0.0, True
+                return r1, R1, self._checked(r1, rep)
         else:
             rep.reason = f"no equilibrium with its own lag in {o.max_lags} live solves"
         # the live solve failed: the lag settled to lag_tol instead, solved
         # to rtol there and checked again
         rep.fallbacks += 1
         rep.reason = ""
-        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.lag_tol, sigma, rep,
-                               tight=True)
+        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.lag_tol, o.lag_rtol,
+                               sigma, rep, tight=True)
         if settled is None:
             return r1, R1, rep
         r1, R1, lag, sigma = settled
-        rep.converged, rep.sigma, rep.friction = True, sigma, lag
-        return r1, R1, rep
+        rep.sigma, rep.friction = sigma, lag
+        return r1, R1, self._checked(r1, rep)
 
-    def _settle(self, r, R, r1, R1, lam1, lag, held, relax, tol, sigma, rep, tight=False):
+    def _checked(self, r1, rep):
+        """``rep`` of a solved step at the positions ``r1``, converged if
+        the strands' true distance (closest points of element pairs, both
+        parameters free) is at least ``2 radius (1 - penetration_tol)``."""
+        md = min_distance(self.rod.mesh, r1, self.radius, self.barrier.exclusion)
+        rep.true_distance = float(md.distance)
+        pen = (2 * self.radius - rep.true_distance) / self.radius
+        if pen > self.options.penetration_tol:
+            rep.reason = (f"the strands overlap by {pen:.3g} of the radius between nodes "
+                          f"(penetration_tol {self.options.penetration_tol:g})")
+        else:
+            rep.converged = True
+        return rep
+
+    def _settle(self, r, R, r1, R1, lam1, lag, held, relax, tol, rtol, sigma, rep,
+                tight=False):
         """The lag's normal forces to a fixed point, from ``(r1, R1)`` in
         the step from ``(r, R)``: solve on the energy at the lag (to
-        lag_rtol), lag again at the state, until no force changes by more
+        ``rtol``), lag again at the state, until no force changes by more
         than ``tol`` times the largest; ``tight``: then solved to rtol at
         the settled lag and checked again.  Returns ``(r1, R1, lag,
         sigma)``, or None with ``rep.reason`` set."""
@@ -451,7 +477,7 @@ class EnergySolve:
         final = False
         for _ in range(o.max_lags):
             r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
-                                        None if final else o.lag_rtol)
+                                        None if final else rtol)
             rep.lags += 1
             if rep.reason:
                 return None
