@@ -27,8 +27,11 @@ One step, in plain sight::
             lag again at the state (new pairs slip from where they met)
             Newton with the friction at the state's own normal forces and
                 normals (live: no energy; the exact non-symmetric tangent,
-                a line search on the residual's norm, at most
-                live_iterations)
+                a line search on the residual's norm; after LIVE_HALVINGS
+                halvings the update is computed again with the tangent
+                shifted by tau diag|K|, tau from LIVE_SHIFT_START times 10
+                per retry, a tenth of it after an accepted step: pseudo-
+                transient continuation; at most live_iterations)
             done when the state is an equilibrium with its own lag (the
                 live Newton takes no iteration): Coulomb's law holds at
                 the state's own normal forces
@@ -70,6 +73,12 @@ from .kinematics import ElementRotationError
 from .problem import Problem
 
 __all__ = ["EnergyOptions", "EnergySolve", "Path", "StepReport"]
+
+#: the live Newton's line search halves at most this often before it
+#: shortens the update by a shift instead (pseudo-transient continuation)
+LIVE_HALVINGS = 6
+#: the first shift of the live Newton's tangent (times diag|K|)
+LIVE_SHIFT_START = 1e-4
 
 
 @dataclass(frozen=True)
@@ -216,21 +225,23 @@ class EnergySolve:
     def _direction(self, K, G, sigma, rep, live=False):
         """The Newton update ``dy`` on the free dofs and the shift used.
         ``live``: the tangent is not symmetric (live normal forces in the
-        friction); solved as it is, by a pivoting LU, never shifted."""
+        friction); solved by a pivoting LU, shifted by ``sigma diag|K|`` as
+        given (no inertia to test)."""
         free, o = self.free, self.options
         Kf = K[free][:, free].tocsc()
+        d = np.abs(Kf.diagonal())
+        d[d == 0] = 1.0
         if live:
+            A = Kf if sigma == 0 else (Kf + sp.diags(sigma * d)).tocsc()
             try:
-                x = spla.splu(Kf, permc_spec="COLAMD").solve(-G[free])
+                x = spla.splu(A, permc_spec="COLAMD").solve(-G[free])
             except RuntimeError:             # exactly singular
                 raise np.linalg.LinAlgError("singular tangent") from None
             if not np.all(np.isfinite(x)):
                 raise np.linalg.LinAlgError("non-finite Newton update")
             dy = np.zeros_like(G)
             dy[free] = x
-            return dy, 0.0
-        d = np.abs(Kf.diagonal())
-        d[d == 0] = 1.0
+            return dy, sigma
         while True:
             A = Kf if sigma == 0 else (Kf + sp.diags(sigma * d)).tocsc()
             try:
@@ -261,9 +272,10 @@ class EnergySolve:
         tangent, an Armijo line search on the energy.  With ``live``, the
         friction's normal forces are the state's (:func:`friction_live`,
         no energy): the exact non-symmetric tangent, an Armijo line search
-        on the residual's norm, at most ``live_iterations``; this is the
-        local solve of a step, from a state the energy solve brought near,
-        and a failure is for the caller to recover from."""
+        on the residual's norm, the tangent shifted where the line search
+        fails (module doc), at most ``live_iterations``; this is the local
+        solve of a step, from a state the energy solve brought near, and a
+        failure is for the caller to recover from."""
         o = self.options
         rtol = o.rtol if rtol is None else rtol
         limit = rep.iterations + o.live_iterations if live else o.max_iterations
@@ -276,6 +288,7 @@ class EnergySolve:
         o, P, free = self.options, self.P, self.free
         E = G = K = None
         retries, rn, trial = 0, np.inf, None
+        tau = 0.0                   # live: the pseudo-time shift (0: Newton)
         while True:
             if G is None:
                 # the accepted trial was evaluated with its tangent: reused
@@ -294,7 +307,7 @@ class EnergySolve:
                                   f"(residual {rn:.3e})")
                     return r, R, sigma
             try:
-                dy, used = self._direction(K, G, sigma, rep, live)
+                dy, used = self._direction(K, G, tau if live else sigma, rep, live)
             except np.linalg.LinAlgError as err:
                 rep.reason = str(err)
                 return r, R, sigma
@@ -303,7 +316,7 @@ class EnergySolve:
             alpha = min(1.0,
                         o.max_spin / max(float(np.linalg.norm(d6[:, 3:], axis=1).max()), 1e-300),
                         step_bound(r, d6[:, :3], self.s, self.barrier, o.fraction))
-            for _ in range(o.halvings):
+            for _ in range(LIVE_HALVINGS if live else o.halvings):
                 try:
                     rt, Rt = P.update(r, R, dy, alpha)
                     # the full step is taken most often: its tangent with it
@@ -326,15 +339,21 @@ class EnergySolve:
                 alpha *= 0.5
                 rep.halvings += 1
             else:
-                if live or retries == o.retries:
+                if retries == o.retries:
                     rep.reason = (f"no descent along the Newton update, shift {used:.3g} "
                                   f"(residual {rn:.3e})")
                     return r, R, sigma
                 retries += 1
                 rep.retries += 1
-                sigma, trial = max(100 * used, 1e-3), None
+                trial = None
+                if live:
+                    tau = max(10 * tau, LIVE_SHIFT_START)
+                else:
+                    sigma = max(100 * used, 1e-3)
                 continue
-            if not live:
+            if live:
+                tau = tau / 10 if tau / 10 >= LIVE_SHIFT_START else 0.0
+            else:
                 sigma = used / 10 if used >= o.shift_start else 0.0
             r, R, G, retries = rt, Rt, None, 0
             trial = trial if trial is not None and np.isfinite(trial[0]) else None
