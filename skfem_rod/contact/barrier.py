@@ -245,12 +245,20 @@ def _pair_lookup(pairs, n_nodes, keys_of):
     return np.where(old[order][at] == key, order[at], -1)
 
 
+def _carried(values, pairs_of, pairs, n_nodes):
+    """``values`` (one per row of ``pairs_of``) on the node pairs
+    ``pairs``: 0 for a pair ``pairs_of`` does not have."""
+    at = _pair_lookup(pairs, n_nodes, pairs_of)
+    out = np.zeros(pairs.shape[0])
+    out[at >= 0] = values[at[at >= 0]]
+    return out
+
+
 def lag_change(a, b, n_nodes):
     """The largest change of a node pair's normal force between the lags
     ``a`` and ``b`` (a pair missing from one counts with 0 there)."""
     at = _pair_lookup(b.pairs, n_nodes, a.pairs)
-    was = np.zeros(b.force.size)
-    was[at >= 0] = a.force[at[at >= 0]]
+    was = _carried(a.force, a.pairs, b.pairs, n_nodes)
     gone = np.ones(a.pairs.shape[0], bool)
     gone[at[at >= 0]] = False
     return float(max(np.abs(b.force - was).max(initial=0.0), a.force[gone].max(initial=0.0)))
@@ -274,15 +282,11 @@ class Relaxation:
     def __call__(self, new, previous):
         """The next lag: ``new`` (the lag at the state solved with
         ``previous``) with its normal forces relaxed."""
-        at = _pair_lookup(new.pairs, self.n_nodes, previous.pairs)
-        was = np.zeros(new.force.size)
-        was[at >= 0] = previous.force[at[at >= 0]]
+        was = _carried(previous.force, previous.pairs, new.pairs, self.n_nodes)
         rho = new.force - was
         if self.last is not None:
             pairs, rho_last = self.last
-            at = _pair_lookup(new.pairs, self.n_nodes, pairs)
-            old = np.zeros(rho.size)
-            old[at >= 0] = rho_last[at[at >= 0]]
+            old = _carried(rho_last, pairs, new.pairs, self.n_nodes)
             d = rho - old
             dd = float(d @ d)
             if dd > 0:
@@ -292,13 +296,13 @@ class Relaxation:
         return replace(new, force=np.maximum(was + self.omega * rho, 0.0))
 
 
-def _points(x, R, i, j):
+def _arms(x, R, i, j):
     """The midpoint of nodes ``i``, ``j`` at ``(x, R)`` as a material point
-    of both sections: its arms in the two body frames and its place."""
+    of both sections: its arms in the two body frames."""
     mid = 0.5 * (x[i] + x[j])
     arm_i = np.einsum("kba,kb->ka", R[i], mid - x[i])        # R_i^T (mid - x_i)
     arm_j = np.einsum("kba,kb->ka", R[j], mid - x[j])
-    return arm_i, arm_j, mid
+    return arm_i, arm_j
 
 
 def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
@@ -326,10 +330,10 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
     n = d / dist[:, None]
     lam = -potential(dist - bw.distance, bw.width, bw.stiffness)[1]
     i, j = pr[:, 0], pr[:, 1]
-    arm_i, arm_j, _ = _points(x0, R0, i, j)
+    arm_i, arm_j = _arms(x0, R0, i, j)
     if held is not None:
         new = _pair_lookup(pr, x.shape[0], np.asarray(held).reshape(-1, 2)) < 0
-        arm_i[new], arm_j[new], _ = _points(x, R, i[new], j[new])
+        arm_i[new], arm_j[new] = _arms(x, R, i[new], j[new])
     if previous is not None:
         at = _pair_lookup(pr, x.shape[0], previous.pairs)
         had = at >= 0
