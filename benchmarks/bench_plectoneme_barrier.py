@@ -44,7 +44,7 @@ sys.path.insert(0, str(HERE))
 import bench_plectoneme as bp  # noqa: E402
 
 from skfem_rod.contact.barrier import (Barrier, friction_live, friction_work,  # noqa: E402
-                                       potential)
+                                       pair_forces)
 from skfem_rod.minimize import EnergySolve  # noqa: E402
 
 
@@ -113,10 +113,7 @@ def coulomb_excess(solve, r, R, rep):
     fw = (friction_live(r, R, lag, bw, solve.mu, solve.eps_v, jacobian=False) if rep.live
           else friction_work(r, R, lag, solve.mu, solve.eps_v, hessian=False))
     f = np.linalg.norm(fw.force, axis=1)
-    g = np.linalg.norm(r[lag.pairs[:, 0]] - r[lag.pairs[:, 1]], axis=1) - bw.distance
-    inside = (g > 0) & (g < bw.width)
-    lam = np.zeros_like(g)
-    lam[inside] = -potential(g[inside], bw.width, bw.stiffness)[1]
+    lam = pair_forces(r, lag.pairs, bw).force
     return float(np.max(f - solve.mu * lam) / (solve.mu * max(lam.max(), 1e-300)))
 
 

@@ -439,9 +439,9 @@ class EnergySolve:
         # of the largest; then Newton at the state's own (live) normal
         # forces, until the state is an equilibrium with its own lag
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
-        held, relax = lag.pairs, Relaxation(r.shape[0])
-        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.live_tol, o.near_rtol,
-                               sigma, rep)
+        held = lag.pairs
+        settled = self._settle(r, R, r1, R1, lam1, lag, held, Relaxation(r.shape[0]),
+                               o.live_tol, o.near_rtol, sigma, rep)
         if settled is None:
             return r1, R1, rep
         r1, R1, lag, sigma = settled
@@ -449,7 +449,10 @@ class EnergySolve:
             # pairs, normals and contact points at the state
             lag = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
             before = rep.iterations
-            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep, live=True)
+            # no pair in contact: no friction, the energy's own Newton (shifted
+            # where not positive definite) finishes, not the live one
+            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
+                                        live=lag.pairs.shape[0] > 0)
             if rep.reason:
                 break
             if rep.iterations == before:
@@ -462,8 +465,9 @@ class EnergySolve:
         # to rtol there and checked again
         rep.fallbacks += 1
         rep.reason = ""
-        settled = self._settle(r, R, r1, R1, lam1, lag, held, relax, o.lag_tol, o.lag_rtol,
-                               sigma, rep, tight=True)
+        # a fresh relaxation: the first one's last residual is of another state
+        settled = self._settle(r, R, r1, R1, lam1, lag, held, Relaxation(r.shape[0]),
+                               o.lag_tol, o.lag_rtol, sigma, rep, tight=True)
         if settled is None:
             return r1, R1, rep
         r1, R1, lag, sigma = settled

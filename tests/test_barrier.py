@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from skfem_rod.contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work,
                                        friction_lag, friction_live, friction_work, node_pairs,
-                                       potential, step_bound)
+                                       pair_forces, potential, step_bound)
 
 
 def test_potential_derivatives_and_c2_at_the_width():
@@ -89,6 +89,21 @@ def test_overlapping_nodes_have_infinite_energy():
     bw = Barrier(distance=0.2, width=0.01, stiffness=1.0, exclusion=0.05)
     w = barrier_work(x, s, bw)
     assert w.energy == np.inf and w.min_gap < 0
+    # the pairs' normal forces: infinite at or inside D, 0 beyond the width,
+    # -b'(g) between (the barrier's gradient along the pair's normal)
+    pr = node_pairs(x, s, 1.0, bw.exclusion)
+    mid = Barrier(distance=0.1, width=0.01, stiffness=1.0, exclusion=0.05)
+    pf = pair_forces(x, pr, mid)
+    g = pf.distance - mid.distance
+    assert np.all(pf.force[g <= 0] == np.inf) and (g <= 0).any()
+    assert np.all(pf.force[g >= mid.width] == 0) and (g >= mid.width).any()
+    wide = Barrier(distance=0.05, width=0.2, stiffness=1.0, exclusion=0.05)
+    pf = pair_forces(x, pr, wide)
+    g = pf.distance - wide.distance
+    on = (g > 0) & (g < wide.width)
+    assert on.sum() >= 3
+    assert np.allclose(pf.force[on], -potential(g[on], wide.width, wide.stiffness)[1])
+    assert np.allclose(np.linalg.norm(pf.normal, axis=1), 1.0)
 
 
 def test_step_bound_is_the_first_contact_on_straight_paths():

@@ -119,6 +119,29 @@ def node_pairs(x, s, reach, exclusion, period=None):
     return pr[arc >= exclusion]
 
 
+class PairForces(NamedTuple):
+    """The barrier's normal forces on given node pairs at one configuration."""
+    normal: np.ndarray        # (k, 3) unit (x_i - x_j) / |x_i - x_j|
+    distance: np.ndarray      # (k,) |x_i - x_j|
+    force: np.ndarray         # (k,) -b'(g) >= 0: 0 beyond the width, inf at or inside D
+    stiffness: np.ndarray     # (k,) d force / d g = -b''(g) (0 beyond the width)
+
+
+def pair_forces(x, pairs, barrier):
+    """The normal force ``-b'(g)`` of each node pair of ``pairs``
+    (``(k, 2)``) at the node positions ``x``, its derivative in the gap and
+    the pair's normal: :class:`PairForces`."""
+    d = x[pairs[:, 0]] - x[pairs[:, 1]]
+    dist = np.linalg.norm(d, axis=1)
+    g = dist - barrier.distance
+    force, stiff = np.zeros(g.size), np.zeros(g.size)
+    on = (g > 0) & (g < barrier.width)
+    _, b1, b2 = potential(g[on], barrier.width, barrier.stiffness)
+    force[on], stiff[on] = -b1, -b2
+    force[g <= 0] = np.inf
+    return PairForces(d / dist[:, None], dist, force, stiff)
+
+
 class BarrierWork(NamedTuple):
     """The barrier at one configuration."""
     energy: float             # inf where a pair is at or inside D
@@ -323,12 +346,9 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
     rigid motion (any rotation) moves them together: no slip."""
     bw = barrier
     pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
-    d = x[pr[:, 0]] - x[pr[:, 1]]
-    dist = np.linalg.norm(d, axis=1)
-    keep = (dist > bw.distance) & (dist < bw.distance + bw.width)
-    pr, d, dist = pr[keep], d[keep], dist[keep]
-    n = d / dist[:, None]
-    lam = -potential(dist - bw.distance, bw.width, bw.stiffness)[1]
+    pf = pair_forces(x, pr, bw)
+    keep = np.isfinite(pf.force) & (pf.force > 0)          # inside the barrier's width
+    pr, n, lam = pr[keep], pf.normal[keep], pf.force[keep]
     i, j = pr[:, 0], pr[:, 1]
     arm_i, arm_j = _arms(x0, R0, i, j)
     if held is not None:
@@ -468,17 +488,10 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True):
         H = sp.csc_matrix((6 * n_nodes, 6 * n_nodes)) if jacobian else None
         return FrictionWork(np.nan, grad, H, np.zeros((k, 3)), np.zeros(k))
     i, j, c_i, c_j, delta = _slip(x, R, lag)
-    d = x[i] - x[j]
-    dist = np.linalg.norm(d, axis=1)
-    g = dist - barrier.distance
-    if g.min() <= 0:
+    nrm, dist, lam, dlam = pair_forces(x, lag.pairs, barrier)
+    if not np.all(np.isfinite(lam)):                      # a pair at or inside D
         return FrictionWork(np.nan, np.full((n_nodes, 6), np.inf), None,
                             np.zeros((k, 3)), np.zeros(k))
-    nrm = d / dist[:, None]
-    on = g < barrier.width
-    lam, dlam = np.zeros(k), np.zeros(k)
-    _, b1, b2 = potential(g[on], barrier.width, barrier.stiffness)
-    lam[on], dlam[on] = -b1, -b2                          # lambda and d lambda / d g
     dn = np.einsum("ka,ka->k", delta, nrm)
     u = delta - dn[:, None] * nrm
     y = np.linalg.norm(u, axis=1)
