@@ -45,7 +45,8 @@ One step, in plain sight::
         and the centrelines can sag between them
 
 Newton on E (the energy; with friction, E + D at the lag):
-    converged when |G_free| <= rtol * force scale
+    converged when |G_free| <= rtol * force scale, or at the residual's
+        round-off floor (Problem.at_floor: an unloaded state, a stiff rod)
     solve (K + sigma diag|K|) dy = -G, sigma the least shift (0, then
         1e-6 times 10^k) making the matrix positive definite (its inertia
         from a symmetric-mode LU's pivots); the next iteration starts from
@@ -58,7 +59,6 @@ Newton on E (the energy; with friction, E + D at the lag):
         `halvings` halvings compute the update again with the shift raised
         a hundredfold, at most `retries` times
 """
-import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -67,12 +67,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work, friction_lag,
-                              friction_live, friction_work, lag_change, step_bound)
+                              friction_live, friction_work, lag_change, node_contact,
+                              step_bound)
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .problem import Problem
 
-__all__ = ["EnergyOptions", "EnergySolve", "Path", "StepReport"]
+__all__ = ["EnergyOptions", "EnergySolve", "StepReport", "solve_barrier"]
 
 #: the live Newton's line search halves at most this often before it
 #: shortens the update by a shift instead (pseudo-transient continuation)
@@ -97,7 +98,6 @@ class EnergyOptions:
     lag_rtol: float = 1e-5
     near_rtol: float = 0.1
     live_iterations: int = 80
-    cuts: int = 3
     penetration_tol: float = 1e-3
     live_tol: float = 0.3
 
@@ -113,8 +113,6 @@ class EnergyOptions:
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and v >= 1):
                 raise ValueError(f"EnergyOptions {name} must be an integer >= 1, not {v!r}")
-        if not (isinstance(self.cuts, (int, np.integer)) and self.cuts >= 0):
-            raise ValueError(f"EnergyOptions cuts must be an integer >= 0, not {self.cuts!r}")
 
 
 @dataclass
@@ -139,18 +137,11 @@ class StepReport:
     friction: Optional[FrictionLag] = None   # the lag the last solve held (friction on)
     evaluation: object = None     # the rod's Evaluation at the last iterate (no barrier)
     true_distance: float = np.nan  # the strands' true least distance at the solved state
-
-
-@dataclass
-class Path:
-    """What :meth:`EnergySolve.path` reached."""
-    states: list = field(default_factory=list)     # (load factor, r, R), converged
-    reports: list = field(default_factory=list)    # StepReport per step tried
-    stop: str = ""                                  # where and why it stopped; "" if done
-
-    @property
-    def converged(self):
-        return not self.stop
+    floor: Optional[float] = None  # the last solve stopped at the residual's round-off floor
+    #: frictionless: the negative eigenvalues of the energy's Hessian at the
+    #: solved state (0: a minimum; more: a saddle, e.g. held by symmetry;
+    #: None: not known, e.g. with friction)
+    negative: Optional[int] = None
 
 
 class EnergySolve:
@@ -214,12 +205,34 @@ class EnergySolve:
         E, G, _, _, _ = self._parts(r, R, lam, lag, False)
         return E, G
 
+    def tangent(self, r, R, lam, lag=None):
+        """The total energy's Hessian over the dofs at ``(r, R)``, load
+        factor ``lam`` (with the friction potential of ``lag``): sparse,
+        in the problem's dof basis, supported dofs included."""
+        return self._parts(r, R, lam, lag, True)[2]
+
     def residual(self, r, R, lam, lag=None):
         """The out-of-balance force over the dofs at ``(r, R)``, load
         factor ``lam``, with the friction of ``lag``'s pairs at the state's
         own normal forces and normals (:func:`friction_live`): zero on the
         free dofs at a converged frictional step."""
         return self._parts(r, R, lam, lag, False, live=True)[1]
+
+    def out_of_balance(self, r, R, lam, rep):
+        """The out-of-balance force over the dofs at the state ``(r, R)``
+        solved by the step of report ``rep``: the rod's, the barrier's and
+        the friction the step converged with (at the state's own normal
+        forces where ``rep.live``, at its lag's otherwise).  Zero on the
+        free dofs up to the tolerance; the reactions on the supported
+        ones."""
+        return self._parts(r, R, lam, rep.friction, False, live=rep.live)[1]
+
+    def contact(self, r, R, rep):
+        """The node pairs in contact at the state ``(r, R)`` solved by the
+        step of report ``rep``, with their friction
+        (:func:`~skfem_rod.contact.barrier.node_contact`)."""
+        return node_contact(r, R, self.s, self.barrier, rep.friction, self.mu, self.eps_v,
+                            live=rep.live)
 
     # -- one Newton solve at a fixed lag ---------------------------------
     def _direction(self, K, G, sigma, rep, live=False):
@@ -263,6 +276,21 @@ class EnergySolve:
             if sigma > 1e12:
                 raise np.linalg.LinAlgError("no positive definite shift below 1e12")
 
+    def _negative(self, K):
+        """The number of negative eigenvalues of ``K`` on the free dofs
+        (Sylvester: the negative pivots of an LU without off-diagonal
+        pivoting), or None where the LU pivoted off the diagonal or the
+        matrix is singular."""
+        free = self.free
+        try:
+            lu = spla.splu(K[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A",
+                           diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        except RuntimeError:
+            return None
+        if not np.array_equal(lu.perm_r, lu.perm_c):
+            return None
+        return int(np.sum(lu.U.diagonal() < 0))
+
     def newton(self, r, R, lam, lag, sigma, rep, rtol=None, live=False):
         """Newton at the fixed ``lag`` to the relative residual ``rtol``
         (default the options'); returns ``(r, R, sigma)`` and fills ``rep``
@@ -300,7 +328,15 @@ class EnergySolve:
                 if not np.isfinite(rn):
                     rep.reason = "non-finite residual"
                     return r, R, sigma
-                if rn <= rtol * P.force_scale(ev):
+                # converged at rtol or (no loads to measure against: an
+                # unloaded state; a stiff rod) at the residual's round-off floor
+                done = rn <= rtol * P.force_scale(ev)
+                if not done:
+                    rep.floor = P.at_floor(r, R, lam, ev, rn)
+                    done = rep.floor is not None
+                if done:
+                    if lag is None:      # frictionless: the energy's Hessian's inertia
+                        rep.negative = self._negative(K)
                     return r, R, sigma
                 if rep.iterations >= limit:
                     rep.reason = (f"no convergence in {limit} iterations "
@@ -352,71 +388,29 @@ class EnergySolve:
                     sigma = max(100 * used, 1e-3)
                 continue
             if live:
-                tau = tau / 10 if tau / 10 >= LIVE_SHIFT_START else 0.0
+                # a full step taken: plain Newton again (its quadratic tail);
+                # a shortened one: a tenth of the shift
+                tau = 0.0 if alpha == 1.0 or tau / 10 < LIVE_SHIFT_START else tau / 10
             else:
                 sigma = used / 10 if used >= o.shift_start else 0.0
             r, R, G, retries = rt, Rt, None, 0
             trial = trial if trial is not None and np.isfinite(trial[0]) else None
             rep.iterations += 1
 
-    # -- a load path -----------------------------------------------------
-    def path(self, n_steps, lam_end=1.0, callback=None, budget=None):
-        """From the rod's reference state (load factor 0) to ``lam_end`` in
-        ``n_steps`` equal steps (:meth:`step`, each from the last with the
-        secant predictor where the last step had the same size).  A step
-        that fails is tried again in halves from the last equilibrium, at
-        most ``options.cuts`` times halved; the path returns to the full
-        step at the next full step's start.  ``callback(k, lam, r, R,
-        report)`` after every converged step (``k`` counts them);
-        ``budget``: wall seconds, checked before each step.  Returns
-        :class:`Path`: the converged states, every step's report (failed
-        tries too), and where and why it stopped (empty when it reached
-        ``lam_end``)."""
-        if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
-            raise ValueError(f"n_steps must be an integer >= 1, not {n_steps!r}")
-        if not np.isfinite(lam_end):
-            raise ValueError(f"lam_end must be a finite number, not {lam_end!r}")
-        r, R, lam = self.rod.r0.copy(), self.rod.R0.copy(), 0.0
-        dlam, prev, last, sigma = lam_end / n_steps, None, None, 0.0
-        out = Path(states=[(0.0, r, R)])
-        t0 = time.perf_counter()
-        full, depth = 0, 0                   # full steps done, halvings of this one
-        while full < n_steps:
-            if budget is not None and time.perf_counter() - t0 > budget:
-                out.stop = f"the budget of {budget:g} s ran out at load factor {lam:.6g}"
-                break
-            target = (full + 1) * dlam
-            d = dlam / 2 ** depth
-            r1, R1, rep = self.step(r, R, lam, d, prev if last == d else None, sigma)
-            out.reports.append(rep)
-            if not rep.converged:
-                if depth == self.options.cuts:
-                    out.stop = (f"step to load factor {lam + d:.6g} (step {d:.3g}, "
-                                f"halved {depth} times): {rep.reason}")
-                    break
-                depth += 1
-                continue
-            lam = lam + d
-            if abs(lam - target) <= 1e-9 * abs(dlam):
-                lam, full, depth = target, full + 1, 0
-            prev, last, (r, R), sigma = (r, R), d, (r1, R1), rep.sigma
-            out.states.append((lam, r, R))
-            if callback is not None:
-                callback(len(out.states) - 1, lam, r, R, rep)
-        return out
-
     # -- one load step ---------------------------------------------------
-    def step(self, r, R, lam, dlam, previous=None, sigma=0.0):
+    def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0):
         """From the equilibrium ``(r, R)`` at load factor ``lam`` to
         ``lam + dlam`` (``previous``: the equilibrium before, for the secant
-        predictor).  Returns ``(r, R, StepReport)``; on failure the state
-        given back is where the solve stopped (not an equilibrium)."""
+        predictor, the increment from it times ``ratio``, this step's size
+        over the last one's).  Returns ``(r, R, StepReport)``; on failure
+        the state given back is where the solve stopped (not an
+        equilibrium)."""
         P, o = self.P, self.options
         rep = StepReport(converged=False, sigma=sigma)
         p = P.prescribed(dlam)
         r1 = None
         if previous is not None:
-            dy = P.increment(r, R, previous[0], previous[1])
+            dy = ratio * P.increment(r, R, previous[0], previous[1])
             a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction)
             try:
                 r1, R1 = P.update(r, R, dy, a)
@@ -515,3 +509,187 @@ class EnergySolve:
             lag = relax(new, lag)
         rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
         return None
+
+
+# -- Rod.solve(method="barrier") ---------------------------------------
+
+#: the load path's options (:class:`skfem_rod.solver.SolverOptions`) that
+#: ``method="barrier"`` takes; its Newton's are :class:`EnergyOptions`
+PATH_OPTIONS = ("min_step", "grow", "max_rotation_step", "time_limit", "predictor")
+#: the barrier's own options and their defaults (``barrier_force`` None:
+#: :func:`default_force`)
+BARRIER_OPTIONS = {"barrier_width": 0.02, "barrier_force": None, "slip_smoothing": 1e-3}
+
+
+def barrier_options(kwargs):
+    """The options of ``Rod.solve(method="barrier", **kwargs)``, split:
+    ``(SolverOptions of the path, EnergyOptions, width, force,
+    smoothing)``.  The predictor defaults to the secant; an unknown name
+    is an error listing the allowed ones."""
+    from dataclasses import fields
+    from .options import make_options
+    energy_names = [f.name for f in fields(EnergyOptions)]
+    allowed = list(PATH_OPTIONS) + energy_names + list(BARRIER_OPTIONS)
+    unknown = sorted(set(kwargs) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown option(s) {', '.join(map(repr, unknown))} of "
+                         f"method='barrier'; allowed: {', '.join(allowed)}")
+    path = {k: kwargs[k] for k in PATH_OPTIONS if k in kwargs}
+    path.setdefault("predictor", "secant")
+    energy = EnergyOptions(**{k: kwargs[k] for k in energy_names if k in kwargs})
+    own = {k: kwargs.get(k, v) for k, v in BARRIER_OPTIONS.items()}
+    for k in ("barrier_width", "slip_smoothing") + (("barrier_force",) if own["barrier_force"]
+                                                    is not None else ()):
+        v = own[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{k} must be a finite number > 0, not {v!r}")
+    return (make_options(path), energy, float(own["barrier_width"]), own["barrier_force"],
+            float(own["slip_smoothing"]))
+
+
+def default_force(problem):
+    """The barrier's default force at half its width: the dead loads'
+    total size at load factor 1 (the sum of the nodal forces' lengths: a
+    point force's size, a distributed load's total), at least ``EI / L^2``
+    of the stiffer bending axis.  Touching pairs then stand off by a
+    fraction of the width rather than at its edge (too stiff a barrier)
+    or pressed to its log wall (too soft); measured on the plectoneme,
+    docs/contact-solve.md."""
+    rod = problem.rod
+    ev = problem.evaluate(rod.r0, rod.R0, 1.0, tangent=False)
+    loads = float(np.linalg.norm(ev.external.reshape(-1, 6)[:, :3], axis=1).sum())
+    EI = max(rod.section.EI1, rod.section.EI2)
+    return max(loads, EI / rod.length ** 2)
+
+
+class BarrierStepper:
+    """The state of one :func:`solve_barrier`: the :class:`EnergySolve`
+    of the rod with its contact replaced by the node barrier, the path's
+    options, the result being built and the deadline -- what
+    :func:`skfem_rod.solver.follow_path` steps (``advance``, ``keep``)."""
+
+    def __init__(self, rod, opts, energy, width, force, smoothing):
+        import copy
+        from .contact.search import arclength_period
+        from .options import Deadline
+        from .results import Result
+        c = rod.contact
+        if c.gamma_R > 0:
+            raise ValueError(f"gamma_R = {c.gamma_R!r}: method='barrier' has tangential "
+                             "friction only (gamma_T); rotational friction needs "
+                             "method='newton'")
+        bare = copy.copy(rod)
+        bare.contact = None
+        P = Problem(bare)
+        if force is None:
+            force = default_force(P)
+        barrier = Barrier.for_nodes(rod.mesh.s_nodes, c.radius, width=width, force=force,
+                                    exclusion=c.exclusion, period=arclength_period(rod.mesh))
+        self.solve = EnergySolve(bare, barrier, c.radius, mu=c.gamma_T,
+                                 eps_v=smoothing * c.radius, options=energy)
+        self.rod, self.opts = rod, opts
+        self.result = Result(rod)
+        self.deadline = Deadline(opts.time_limit)
+        self.sigma = 0.0               # the tangent's shift the next step starts from
+
+    def initial(self, r0, R0):
+        """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
+        iteration where it is one)."""
+        r, R, rep = self.solve.step(r0, R0, 0.0, 0.0, sigma=self.sigma)
+        if rep.converged:
+            self.sigma = rep.sigma
+        return r, R, rep
+
+    def advance(self, r, R, lam, lam_new, prev):
+        """The step ``lam -> lam_new`` from the equilibrium ``(r, R)``
+        (``prev = (lam, r, R)`` the one before: the secant predictor,
+        scaled to this step's size).  Returns ``(r, R, StepReport)``."""
+        previous, ratio = None, 1.0
+        if self.opts.predictor == "secant" and prev is not None and lam != prev[0]:
+            previous, ratio = (prev[1], prev[2]), (lam_new - lam) / (lam - prev[0])
+        r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio)
+        if rep.converged:
+            self.sigma = rep.sigma
+        return r1, R1, rep
+
+    def keep(self, lam, r, R, rep, t, callback):
+        """Record a converged step: its reactions from the whole
+        out-of-balance force (rod, barrier, friction), its contact pairs as
+        a :class:`skfem_rod.results.ContactState`."""
+        from dataclasses import replace
+        from .problem import Report
+        G = self.solve.out_of_balance(r, R, lam, rep)
+        radius = self.solve.radius
+        report = Report(True, iterations=rep.iterations, history=list(rep.history),
+                        evaluation=replace(rep.evaluation, residual=G),
+                        min_distance=rep.true_distance, floor=rep.floor,
+                        penetration=max(0.0, 2 * radius - rep.true_distance))
+        self.result.append(lam, r, R, report, time=t, contact=self.contact_state(r, R, rep))
+        if rep.negative:
+            self.result.log.append(
+                f"step to lam={lam:.6g}: an unstable equilibrium, a saddle of the energy "
+                f"({rep.negative} negative eigenvalue(s) of its Hessian; e.g. held by a "
+                f"symmetry that no load breaks)")
+        if rep.fallbacks:
+            self.result.log.append(
+                f"step to lam={lam:.6g}: the Newton at the state's own normal forces failed "
+                f"({rep.fallbacks}x); the step holds the friction of its lag settled to "
+                f"lag_tol={self.solve.options.lag_tol:g} (Coulomb's law to that)")
+        if callback is not None:
+            callback(self.result, len(self.result.steps) - 1)
+
+    def contact_state(self, r, R, rep):
+        """The node pairs in contact as a :class:`ContactState`: one row
+        per pair (``s`` node i, ``s_bar`` node j, the normal from j to i),
+        its point force in ``force`` with ``weight`` 1, the barrier's
+        contact distance in ``offset`` (``2 eps + offset``), the friction
+        force on node j's section (the master's) and the slip of i
+        relative to j."""
+        from .contact.friction import OPEN, SLIP, STICK
+        from .results import ContactState
+        nc = self.solve.contact(r, R, rep)
+        s, radius = self.rod.mesh.s_nodes, self.solve.radius
+        k = nc.force.size
+        offset = np.full(k, self.solve.barrier.distance - 2 * radius)
+        st = ContactState(
+            s=s[nc.pairs[:, 0]], s_bar=s[nc.pairs[:, 1]], gap=2 * radius + offset - nc.distance,
+            force=nc.force, normal=nc.normal, weight=np.ones(k),
+            penetration=max(0.0, 2 * radius - rep.true_distance), uzawa=0,
+            uzawa_converged=True, newton_total=rep.iterations, candidates=nc.candidates,
+            min_distance=rep.true_distance, offset=offset)
+        if self.solve.mu > 0:
+            st.force_T, st.slip_T = -nc.friction, nc.slip
+            st.state_T = np.where(nc.sliding, SLIP, STICK).astype(int)
+            st.force_R, st.slip_R = np.zeros((k, 3)), np.zeros((k, 3))
+            st.state_R = np.full(k, int(OPEN))
+            st.dissipation = float(np.sum(st.force_T * st.slip_T))
+        return st
+
+
+def solve_barrier(rod, n_steps=1, path=None, callback=None, start=None, **kwargs):
+    """``Rod.solve(method="barrier")``: the load path of
+    :func:`skfem_rod.solver.follow_path` (step cutting, the deadline), each
+    step solved by :meth:`EnergySolve.step` with the rod's contact
+    (radius, exclusion, ``gamma_T``) replaced by the node barrier.  Options:
+    :data:`PATH_OPTIONS`, the fields of :class:`EnergyOptions`,
+    ``barrier_width`` (times the radius), ``barrier_force`` (a pair's force
+    at half the width; :func:`default_force`) and ``slip_smoothing`` (the
+    friction's, times the radius).  Returns a
+    :class:`skfem_rod.results.Result`."""
+    from .solver import follow_path, load_path, start_state
+    if rod.contact is None:
+        raise ValueError("method='barrier' is a contact solve: switch contact on with "
+                         "rod.enable_contact(...) (its radius, exclusion and gamma_T are used)")
+    rod.check_steps(n_steps)
+    times, values = load_path(path)
+    opts, energy, width, force, smoothing = barrier_options(kwargs)
+    rod.check_constraints()
+    S = BarrierStepper(rod, opts, energy, width, force, smoothing)
+    r0, R0 = (rod.r0, rod.R0) if start is None else start_state(rod, start)
+    r, R, rep = S.initial(np.array(r0, dtype=float), np.array(R0, dtype=float))
+    if not rep.converged:
+        S.result.finish(False, f"no equilibrium at load factor 0: {rep.reason}")
+        return S.result
+    S.keep(0.0, r, R, rep, 0.0, callback)
+    return follow_path(S, r, R, n_steps, times, values, callback)

@@ -1014,6 +1014,12 @@ class Rod:
             be ``(0, lam_end)``, ``n_steps`` sets the initial load step
             ``lam_end / n_steps``; further options of
             :func:`skfem_rod.continuation.follow`, e.g. ``stability=True``).
+            ``method="barrier"`` (contact on) replaces the paper's
+            augmented-Lagrangian contact by a smooth barrier between the
+            centreline's nodes and solves each step by Newton on the total
+            energy, with tangential friction (``gamma_T``) at the state's
+            own normal forces (:func:`skfem_rod.minimize.solve_barrier`,
+            docs/contact-solve.md; dead forces only, no ``gamma_R``).
 
         Returns
         -------
@@ -1050,8 +1056,13 @@ class Rod:
             from .continuation import solve_arclength
             return solve_arclength(self, n_steps=n_steps, path=path, callback=callback,
                                    **options)
+        if method == "barrier":
+            from .minimize import solve_barrier
+            return solve_barrier(self, n_steps=n_steps, path=path, callback=callback,
+                                 start=start, **options)
         if method != "newton":
-            raise ValueError(f"method must be 'newton' or 'arclength', got {method!r}")
+            raise ValueError(f"method must be 'newton', 'arclength' or 'barrier', "
+                             f"got {method!r}")
         from .solver import solve
         return solve(self, n_steps=n_steps, path=path, callback=callback, start=start,
                      **options)

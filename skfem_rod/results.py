@@ -87,7 +87,11 @@ class CrossingContact:
 @dataclass
 class ContactState:
     """Active contact points of a converged step (one row per slave point
-    with a positive normal force)."""
+    with a positive normal force).  With ``Rod.solve(method="barrier")``
+    one row per node pair inside the barrier's width (``s`` node i,
+    ``s_bar`` node j, each pair once): ``force`` is then the pair's point
+    force and ``weight`` 1, ``offset`` the barrier's contact distance less
+    ``2 eps``, no Uzawa (:meth:`skfem_rod.minimize.BarrierStepper.contact_state`)."""
     s: np.ndarray            # slave arclengths
     s_bar: np.ndarray        # master arclengths
     gap: np.ndarray          # d = 2 eps + offset - distance (positive: penetration)
@@ -162,11 +166,13 @@ class Result:
         self.log = []
 
     # building ----------------------------------------------------------
-    def append(self, lam, r, R, report, time=None):
+    def append(self, lam, r, R, report, time=None, contact=None):
         """Add a converged step (used by the solvers while they follow the
         load path): ``report`` is the step's :class:`skfem_rod.newton.Report`
         (its evaluation's residual is in the supports' bases, see
-        ``Rod.support_basis``; reactions are stored spatial).
+        ``Rod.support_basis``; reactions are stored spatial); ``contact``:
+        the step's :class:`ContactState` where the solve builds it (the
+        node barrier's, ``method="barrier"``), else from the evaluation.
         """
         ev = report.evaluation
         reactions = {}
@@ -180,8 +186,7 @@ class Result:
                 if Q is not None:           # the residual is in the support's basis
                     f, m = Q @ f, Q @ m
                 reactions[n] = (f, m)
-        contact = None
-        if ev is not None and ev.contact is not None:
+        if contact is None and ev is not None and ev.contact is not None:
             contact = self._contact_state(ev.contact, report)
         self.steps.append(Step(load_factor=float(lam), r=r.copy(), R=R.copy(),
                                iterations=int(report.iterations),

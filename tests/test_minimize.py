@@ -11,7 +11,7 @@ from skfem_rod.contact.barrier import (Barrier, barrier_work, friction_lag, fric
                                        potential)
 from skfem_rod.contact.crossing import min_distance
 from skfem_rod.contact.search import arclength_period
-from skfem_rod.minimize import EnergyOptions, EnergySolve, StepReport
+from skfem_rod.minimize import EnergyOptions, EnergySolve
 from skfem_rod.topology import topology
 
 from helpers import load_demo
@@ -83,34 +83,51 @@ def test_bad_input_is_refused_with_the_parameter_named():
 def test_twisted_rod_snaps_into_the_reference_loop():
     """The contact scene of tests/test_dynamics.py (L = 10 lambda, radius
     0.1 lambda; 108 elements here, the node spacing a third of the radius,
-    where the augmented-Lagrangian solve used 36) in steps of 0.1 turn: the straight branch's
-    torque at 1.7 turns (1.913 sqrt(BT)), the loop closed by contact at 1.8
-    turns with the reference's torque 0.89 (within 0.02: the barrier's
-    standoff), a recorded state never overlapping, link kept."""
+    where the augmented-Lagrangian solve used 36) in steps of 0.1 turn by
+    ``Rod.solve(method="barrier")``: the straight branch's torque at 1.7
+    turns (1.913 sqrt(BT)), the loop closed by contact at 1.8 turns with
+    the reference's torque 0.89 (within 0.02: the barrier's standoff), a
+    recorded state never overlapping, link kept."""
     rod = demo.build(10.0, 108, 0.1, 1.9, 0.01, 0.01)
-    rod.contact = None
-    barrier = Barrier.for_nodes(rod.mesh.s_nodes, 0.1)
-    solve = EnergySolve(rod, barrier, 0.1)
-    P = solve.P
-    end = rod.node("end")
     order = np.argsort(rod.mesh.s_nodes)
     torque = {}
 
-    def check(k, lam, r, R, rep):
-        turns = round(lam * 1.9, 6)
-        ev = rep.evaluation
-        fresh = P.evaluate(r, R, lam, tangent=False)      # the report's is the state's
-        assert np.array_equal(ev.residual, fresh.residual)
-        torque[turns] = float((ev.residual + ev.external).reshape(-1, 6)[end, 3])
-        md = min_distance(rod.mesh, r, 0.1, barrier.exclusion)
+    def check(result, k):
+        st = result.steps[k]
+        turns = round(st.load_factor * 1.9, 6)
+        torque[turns] = abs(float(result.reaction("end", k)[1][0]))
+        md = min_distance(rod.mesh, st.r, 0.1, rod.contact.exclusion)
         assert md.distance >= 2 * 0.1 * (1 - 1e-3)
-        link = topology(r[order], R[order][:, :, 0]).link
+        assert st.contact.min_distance == pytest.approx(md.distance, rel=1e-12)
+        link = topology(st.r[order], st.R[order][:, :, 0]).link
         assert link == pytest.approx(np.floor(turns + 0.5), abs=1e-6)   # no strand passage
-    path = solve.path(18, 18 / 19, check)
-    assert path.converged, path.stop
-    assert len(path.states) == 19 and len(torque) == 18
+    result = rod.solve(18, path=[0, 18 / 19], method="barrier", barrier_force=1.0,
+                       callback=check)
+    assert result.converged, result.message
+    assert len(result.steps) == 19 and len(torque) == 19
     assert torque[1.7] == pytest.approx(1.913, abs=0.01)
     assert torque[1.8] == pytest.approx(0.89, abs=0.02)
+    assert result.steps[-1].contact.s.size > 0
+    assert all(st.flow_steps == 0 for st in result.steps)
+
+
+def _steps(solve, n, settle=False):
+    """``n`` equal steps of ``solve`` to load factor 1, each from the last
+    (secant predictor after the first), from the reference or, with
+    ``settle``, from the equilibrium at load factor 0 (as
+    ``Rod.solve(method="barrier")``; the hairpin's arms start inside the
+    barrier's width); the last state and the steps' reports."""
+    r, R, prev, reps, sigma = solve.rod.r0.copy(), solve.rod.R0.copy(), None, [], 0.0
+    if settle:
+        r, R, rep = solve.step(r, R, 0.0, 0.0)
+        assert rep.converged, rep.reason
+        sigma = rep.sigma
+    for k in range(n):
+        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma)
+        assert rep.converged, rep.reason
+        prev, (r, R), sigma = (r, R), (r1, R1), rep.sigma
+        reps.append(rep)
+    return r, R, reps
 
 
 def _pressed_hairpin(mu, steps=4):
@@ -121,10 +138,7 @@ def _pressed_hairpin(mu, steps=4):
     rod.point_loads.clear()
     rod.add_force("end", [0.02, -0.05, 0.0])
     solve = EnergySolve(rod, barrier, eps, mu=mu)
-    path = solve.path(steps)
-    assert path.converged, path.stop
-    _, r, R = path.states[-1]
-    reps = path.reports
+    r, R, reps = _steps(solve, steps)
     return solve, rod, r, R, reps
 
 
@@ -180,37 +194,6 @@ def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
                 tested += int(np.sum(above & (e[:-1] < 0.1)))
         assert tested >= 2
     assert moved[0.0] > moved[0.3] > moved[1.0] >= 0.0
-
-
-def test_a_failed_step_is_tried_again_in_halves():
-    """A step that fails is tried in halves from the last equilibrium (the
-    secant predictor only after a converged step of the same size), the path returns
-    to full steps at the next full step, and with no halving allowed it
-    stops saying where and why."""
-    rod, eps, barrier = _hairpin()
-    calls = []
-
-    class Capped(EnergySolve):
-        def step(self, r, R, lam, dlam, previous=None, sigma=0.0):
-            calls.append((lam, dlam, previous is not None))
-            if dlam > 0.3:
-                return r, R, StepReport(converged=False, reason="too long a step")
-            return super().step(r, R, lam, dlam, previous, sigma)
-
-    solve = Capped(rod, barrier, eps)
-    path = solve.path(2)
-    assert path.converged, path.stop
-    assert [lam for lam, _, _ in path.states] == [0.0, 0.25, 0.5, 0.75, 1.0]
-    assert [q.converged for q in path.reports] == [False, True, True, False, True, True]
-    assert calls == [(0.0, 0.5, False), (0.0, 0.25, False), (0.25, 0.25, True),
-                     (0.5, 0.5, False), (0.5, 0.25, True), (0.75, 0.25, True)]
-    # the halved path is the path of four steps
-    _, r4, _ = EnergySolve(rod, barrier, eps).path(4).states[-1]
-    assert np.allclose(path.states[-1][1], r4, atol=1e-9)
-    calls.clear()
-    stopped = Capped(rod, barrier, eps, options=EnergyOptions(cuts=0)).path(2)
-    assert not stopped.converged and len(stopped.states) == 1
-    assert "load factor 0.5" in stopped.stop and "too long a step" in stopped.stop
 
 
 def test_a_step_whose_strands_overlap_between_nodes_has_not_converged():

@@ -518,3 +518,45 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True):
         blk[:, :, 6:9] -= dF[:, :, None] * dg[:, None, :]
         H = _assemble(blk, i, j, n_nodes)
     return FrictionWork(np.nan, grad, H, -phi, y)
+
+
+class NodeContact(NamedTuple):
+    """The node pairs in contact at a state (one row per pair inside the
+    barrier's width, each pair once): what a solve records."""
+    pairs: np.ndarray         # (k, 2) node indices i < j
+    normal: np.ndarray        # (k, 3) unit (x_i - x_j) / |x_i - x_j|
+    distance: np.ndarray      # (k,) |x_i - x_j|
+    force: np.ndarray         # (k,) normal point force -b'(g) > 0 pressing i and j apart
+    candidates: int           # node pairs within the barrier's reach
+    friction: np.ndarray      # (k, 3) friction point force on node i's section (j gets -it)
+    slip: np.ndarray          # (k, 3) the slip of i's contact point relative to j's (u)
+    sliding: np.ndarray       # (k,) bool: |u| >= eps_v (the law's full Coulomb force)
+
+
+def node_contact(x, R, s, barrier, lag=None, mu=0.0, eps_v=None, live=True):
+    """:class:`NodeContact` at ``(x, R)``: the barrier's pairs and forces
+    and, with ``mu > 0`` and the :class:`FrictionLag` ``lag`` the state
+    was solved with, each pair's friction force and slip
+    (:func:`friction_live` where ``live``, else :func:`friction_work` at
+    the lag's normal forces); pairs the lag does not have carry none."""
+    bw = barrier
+    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
+    pf = pair_forces(x, pr, bw)
+    on = pf.force > 0
+    k = int(on.sum())
+    friction, slip = np.zeros((k, 3)), np.zeros((k, 3))
+    sliding = np.zeros(k, dtype=bool)
+    pairs = pr[on]
+    if lag is not None and mu > 0 and lag.pairs.shape[0] and k:
+        fw = (friction_live(x, R, lag, bw, mu, eps_v, jacobian=False) if live
+              else friction_work(x, R, lag, mu, eps_v, hessian=False))
+        at = _pair_lookup(pairs, x.shape[0], lag.pairs)
+        has, src = at >= 0, at[at >= 0]
+        f = fw.force[src]
+        size = np.linalg.norm(f, axis=1)
+        # the force is -phi, phi along the slip u: u = -f |u| / |f|
+        friction[has] = f
+        slip[has] = -f * (fw.slip[src] / np.maximum(size, 1e-300))[:, None]
+        sliding[has] = fw.slip[src] >= eps_v
+    return NodeContact(pairs, pf.normal[on], pf.distance[on], pf.force[on], int(pr.shape[0]),
+                       friction, slip, sliding)

@@ -1,0 +1,192 @@
+"""``Rod.solve(method="barrier")``: the node-barrier solve of
+:mod:`skfem_rod.minimize` behind the rod's own solve -- the same states as
+its steps taken by hand, a Result whose reactions balance the loads, whose
+contact pairs obey Coulomb's law and dissipate, the load path's step
+cutting, elastic reversibility, and bad input refused by name."""
+import numpy as np
+import pytest
+
+from skfem_rod import Rod, Section, geometry
+from skfem_rod.minimize import EnergySolve, StepReport, default_force
+
+from test_minimize import _hairpin, _steps
+
+LOAD = np.array([0.02, -0.05, 0.0])
+
+
+def _pressed(gamma_T):
+    """The pressed hairpin of tests/test_minimize.py with the rod's own
+    contact switched on (radius, exclusion, gamma_T): what method="barrier"
+    reads."""
+    rod, eps, barrier = _hairpin()
+    rod.point_loads.clear()
+    rod.add_force("end", LOAD)
+    rod.enable_contact(radius=eps, gamma_T=gamma_T)
+    return rod, eps, barrier
+
+
+@pytest.mark.parametrize("gamma_T", [0.0, 0.3])
+def test_the_solve_is_its_steps_and_its_result_balances(gamma_T):
+    rod, eps, barrier = _pressed(gamma_T)
+    result = rod.solve(4, method="barrier", barrier_force=1.0)
+    assert result.converged, result.message
+    assert np.allclose(result.load_factors, [0, 0.25, 0.5, 0.75, 1.0])
+    # the same steps taken by hand with EnergySolve (same barrier, predictor)
+    rod.contact, contact = None, rod.contact
+    r, R, reps = _steps(EnergySolve(rod, barrier, eps, mu=gamma_T), 4, settle=True)
+    rod.contact = contact
+    assert np.abs(result.steps[-1].r - r).max() <= 1e-12 * rod.length
+    assert [st.iterations for st in result.steps[1:]] == [q.iterations for q in reps]
+    for k, st in enumerate(result.steps[1:], start=1):
+        lam = st.load_factor
+        # the clamp takes up the load: the barrier's and the friction's
+        # forces are internal (pairwise opposite), so they cancel
+        # up to what the free dofs' residual leaves: their sum is at most
+        # sqrt(n) times its norm (Cauchy-Schwarz), its moments |x| times that
+        f, m = result.reaction("start", k)
+        left = np.sqrt(st.r.shape[0]) * st.residual_history[-1]
+        assert 0 < left <= 1e-8 * 2 * np.linalg.norm(LOAD) * np.sqrt(st.r.shape[0])
+        assert np.linalg.norm(f + lam * LOAD) <= left
+        end = rod.node("end")
+        # moments about the clamp: the load's at the end.  With friction a
+        # pair's two forces act at its two material points, which are apart
+        # by the slip delta: a couple delta_n n x F_T, delta_n the change of
+        # their normal separation since they met, within the barrier's width
+        # (docs/contact-solve.md)
+        arm = st.r[end] - st.r[rod.node("start")]
+        reach = np.linalg.norm(st.r - st.r[rod.node("start")], axis=1).max() + 1.0
+        couple = 0.0 if gamma_T == 0 else \
+            2 * barrier.width * np.linalg.norm(st.contact.force_T, axis=1).sum()
+        assert np.linalg.norm(m + np.cross(arm, lam * LOAD)) <= reach * left + couple
+        c = st.contact
+        assert c.s.size > 0 and np.all(c.force > 0) and np.all(c.weight == 1)
+        assert c.penetration == 0.0 and c.min_distance >= 2 * eps * (1 - 1e-3)
+        assert np.all(c.gap <= 0)                      # stands off in the barrier's width
+        if gamma_T == 0:
+            assert not c.friction
+            continue
+        # Coulomb at the state's own normal forces, in the tangent plane
+        ft = np.linalg.norm(c.force_T, axis=1)
+        assert np.all(ft <= gamma_T * c.force * (1 + 1e-12))
+        assert np.abs(np.einsum("ka,ka->k", c.force_T, c.normal)).max() <= 1e-12 * ft.max()
+        assert ft.max() > 0 and c.dissipation > 0
+        # the friction opposes the slip: on the master along it
+        slipping = np.linalg.norm(c.slip_T, axis=1) > 0
+        assert np.all(np.einsum("ka,ka->k", c.force_T, c.slip_T)[slipping] > 0)
+    if gamma_T > 0:
+        assert not result.log
+    else:
+        # pressed in its plane, the free arm would roll off sideways: every
+        # loaded state is a saddle held by the symmetry, and said to be
+        assert [line.split(":")[0] for line in result.log] == \
+            [f"step to lam={lam:g}" for lam in (0.25, 0.5, 0.75, 1.0)]
+        assert all("saddle" in line for line in result.log)
+
+
+def test_a_saddle_is_told_by_the_hessians_eigenvalues():
+    """The inertia the solve reads off its LU's pivots is the Hessian's:
+    the frictionless pressed hairpin's last state has exactly as many
+    negative eigenvalues (dense, independent) as the log says (1)."""
+    rod, eps, barrier = _pressed(0.0)
+    rod.contact = None
+    solve = EnergySolve(rod, barrier, eps)
+    r, R, reps = _steps(solve, 2, settle=True)
+    K = solve.tangent(r, R, 1.0)
+    w = np.linalg.eigvalsh(K[solve.free][:, solve.free].toarray())
+    assert reps[-1].negative == int(np.sum(w < 0)) == 1
+    assert w[0] < -1e-4 * abs(w[1])            # clearly negative, not round-off
+    # the reference pressed by nothing: a minimum
+    r0, R0, rep0 = solve.step(rod.r0, rod.R0, 0.0, 0.0)
+    assert rep0.negative == 0
+
+
+def test_load_and_unload_returns_to_the_reference_without_friction():
+    rod, eps, _ = _pressed(0.0)
+    result = rod.solve(4, path=[0, 1, 0], method="barrier", barrier_force=1.0)
+    assert result.converged, result.message
+    assert result.steps[4].contact.s.size > 0
+    # back at step 0's equilibrium (not the reference: the arms start
+    # inside the barrier's width)
+    assert np.abs(result.steps[-1].r - result.steps[0].r).max() <= 1e-8 * rod.length
+    assert result.steps[-1].contact.s.size == result.steps[0].contact.s.size
+
+
+def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
+    """A step that fails is cut in half by the load path
+    (solver.follow_path), grows back after two successes, and with
+    min_step above the cut it stops saying where and why."""
+    rod, eps, _ = _pressed(0.0)
+    calls = []
+    step = EnergySolve.step
+
+    def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0):
+        calls.append((round(lam, 12), round(dlam, 12), previous is not None))
+        if dlam > 0.3:
+            return r, R, StepReport(converged=False, reason="too long a step")
+        return step(self, r, R, lam, dlam, previous, sigma, ratio)
+
+    monkeypatch.setattr(EnergySolve, "step", capped)
+    result = rod.solve(2, method="barrier", barrier_force=1.0)
+    assert result.converged, result.message
+    assert np.allclose(result.load_factors, [0, 0.25, 0.5, 0.75, 1.0])
+    assert calls == [(0.0, 0.0, False), (0.0, 0.5, False), (0.0, 0.25, False),
+                     (0.25, 0.25, True), (0.5, 0.5, True), (0.5, 0.25, True),
+                     (0.75, 0.25, True)]
+    assert sum("too long a step" in line for line in result.log) == 2
+    monkeypatch.setattr(EnergySolve, "step", step)
+    four = rod.solve(4, method="barrier", barrier_force=1.0)
+    assert np.abs(four.steps[-1].r - result.steps[-1].r).max() <= 1e-7 * rod.length
+    monkeypatch.setattr(EnergySolve, "step", capped)
+    stopped = rod.solve(2, method="barrier", barrier_force=1.0, min_step=0.3)
+    assert not stopped.converged and len(stopped.steps) == 1
+    assert "load factor 0" in stopped.message and "too long a step" in stopped.message
+
+
+def test_an_unloaded_closed_ring_stays_put():
+    """The ring's barrier is periodic by itself (no pair across the closure)."""
+    rod = Rod(geometry.ring(1.0), Section.circle(E=1e4, nu=0.3, radius=0.02), 40)
+    rod.clamp("start").enable_contact(gamma_T=0.3)
+    result = rod.solve(2, method="barrier")
+    assert result.converged, result.message
+    assert all(st.contact.s.size == 0 for st in result.steps)
+    assert np.abs(result.steps[-1].r - rod.r0).max() < 1e-12
+
+
+def test_the_default_force_is_the_loads_or_the_bending_scale():
+    rod, eps, _ = _pressed(0.0)
+    from skfem_rod.problem import Problem
+    rod.contact = None
+    EI = rod.section.EI1
+    assert default_force(Problem(rod)) == pytest.approx(max(np.linalg.norm(LOAD),
+                                                            EI / rod.length ** 2))
+    rod.point_loads.clear()
+    assert default_force(Problem(rod)) == pytest.approx(EI / rod.length ** 2)
+    rod.add_force("end", 1e3 * LOAD)
+    assert default_force(Problem(rod)) == pytest.approx(1e3 * np.linalg.norm(LOAD))
+
+
+def test_bad_input_is_refused_with_the_parameter_named():
+    rod, eps, _ = _pressed(0.3)
+    with pytest.raises(ValueError, match="'penalty_growth'.*allowed: min_step"):
+        rod.solve(2, method="barrier", penalty_growth=2.0)
+    for name, value in (("barrier_width", -1.0), ("barrier_force", 0.0),
+                        ("slip_smoothing", np.nan), ("barrier_width", "wide")):
+        with pytest.raises(ValueError, match=name):
+            rod.solve(2, method="barrier", **{name: value})
+    with pytest.raises(ValueError, match="rtol"):
+        rod.solve(2, method="barrier", rtol=-1.0)
+    with pytest.raises(ValueError, match="predictor"):
+        rod.solve(2, method="barrier", predictor="cubic")
+    with pytest.raises(ValueError, match="method must be"):
+        rod.solve(2, method="barier")
+    rod.enable_contact(radius=eps, gamma_T=0.3, gamma_R=0.01)
+    with pytest.raises(ValueError, match="gamma_R"):
+        rod.solve(2, method="barrier")
+    rod.enable_contact(radius=eps)
+    rod.add_force("end", [0.0, 0.0, 1.0], follower=True)
+    with pytest.raises(ValueError, match="follower"):
+        rod.solve(2, method="barrier")
+    rod.point_loads.pop()
+    rod.contact = None
+    with pytest.raises(ValueError, match="enable_contact"):
+        rod.solve(2, method="barrier")
