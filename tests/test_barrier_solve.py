@@ -190,3 +190,15 @@ def test_bad_input_is_refused_with_the_parameter_named():
     rod.contact = None
     with pytest.raises(ValueError, match="enable_contact"):
         rod.solve(2, method="barrier")
+
+
+def test_backward_error_tells_a_solution_from_a_wrong_one():
+    from scipy.sparse import random as sprandom
+    import scipy.sparse as sp
+    from skfem_rod.minimize import backward_error
+    rng = np.random.default_rng(7)
+    A = (sprandom(200, 200, density=0.05, random_state=rng) + 10 * sp.eye(200)).tocsc()
+    x = rng.standard_normal(200)
+    b = A @ x
+    assert backward_error(A, x, b) <= 1e-15
+    assert backward_error(A, x * (1 + 1e-6), b) >= 1e-8
