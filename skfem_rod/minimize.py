@@ -62,6 +62,8 @@ Newton on E (the energy; with friction, E + D at the lag):
 from dataclasses import dataclass, field
 from typing import Optional
 
+import warnings
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -73,7 +75,7 @@ from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .problem import Problem
 
-__all__ = ["EnergyOptions", "EnergySolve", "StepReport", "solve_barrier"]
+__all__ = ["BarrierResolution", "EnergyOptions", "EnergySolve", "StepReport", "solve_barrier"]
 
 #: the live Newton's line search halves at most this often before it
 #: shortens the update by a shift instead (pseudo-transient continuation)
@@ -583,6 +585,12 @@ def default_force(problem):
     return max(loads, EI / rod.length ** 2)
 
 
+class BarrierResolution(UserWarning):
+    """``method="barrier"`` on a mesh whose nodes are too far apart for the
+    contact radius: the nodes' sampling offset ``a^2 / (8 eps)`` exceeds
+    the barrier's width (docs/contact-solve.md)."""
+
+
 class BarrierStepper:
     """The state of one :func:`solve_barrier`: the :class:`EnergySolve`
     of the rod with its contact replaced by the node barrier, the path's
@@ -606,6 +614,16 @@ class BarrierStepper:
             force = default_force(P)
         barrier = Barrier.for_nodes(rod.mesh.s_nodes, c.radius, width=width, force=force,
                                     exclusion=c.exclusion, period=arclength_period(rod.mesh))
+        sampling = barrier.distance - 2 * c.radius       # a^2 / (8 eps): the nodes' offset
+        if sampling > barrier.width:
+            warnings.warn(
+                f"method='barrier' with {rod.mesh.n_elements} elements: the node spacing "
+                f"{np.sqrt(8 * c.radius * sampling):.3g} against the contact radius "
+                f"{c.radius:.3g} lets crossing strands stand off by up to "
+                f"{sampling / c.radius:.3g} of the radius, more than the barrier's width "
+                f"({barrier.width / c.radius:.3g}), and strands sliding along each other feel "
+                f"the nodes as bumps; refine the mesh to a node spacing below "
+                f"{np.sqrt(8 * c.radius * barrier.width):.3g}", BarrierResolution, stacklevel=4)
         self.solve = EnergySolve(bare, barrier, c.radius, mu=c.gamma_T,
                                  eps_v=smoothing * c.radius, options=energy)
         self.rod, self.opts = rod, opts

@@ -13,6 +13,10 @@ from test_minimize import _hairpin, _steps
 
 LOAD = np.array([0.02, -0.05, 0.0])
 
+# the hairpin's 24 elements are coarse for the barrier (its nodes' offset
+# 0.045 eps, tested below): what is tested here holds all the same
+pytestmark = pytest.mark.filterwarnings("ignore::skfem_rod.minimize.BarrierResolution")
+
 
 def _pressed(gamma_T):
     """The pressed hairpin of tests/test_minimize.py with the rod's own
@@ -229,3 +233,19 @@ def test_the_plectoneme_demo_snaps_into_a_loop_and_keeps_its_link(tmp_path):
     assert loop["turns"] == pytest.approx(1.25) and loop["pairs"] > 0
     assert loop["x_end"] < 0.5 * demo.L and loop["torque"] < 0.5 * recs[19]["torque"]
     assert (tmp_path / "results.json").exists() and (tmp_path / "plectoneme.png").exists()
+
+
+def test_a_mesh_too_coarse_for_the_barrier_is_warned_about():
+    """The nodes' sampling offset a^2 / (8 eps) against the barrier's
+    width: the plectoneme's 40 elements (a = 0.33 eps, offset 0.014 eps)
+    are fine; the hairpin's 24 (a = 0.6 eps, 0.045 eps) are not."""
+    from skfem_rod.minimize import BarrierResolution
+    import warnings
+    from helpers import load_demo
+    fine = load_demo("plectoneme").build(40, turns=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BarrierResolution)
+        assert fine.solve(1, method="barrier").converged
+    rod, eps, _ = _pressed(0.0)
+    with pytest.warns(BarrierResolution, match="0.0451 of the radius.*below 0.02$"):
+        rod.solve(1, method="barrier", barrier_force=1.0)
