@@ -210,10 +210,33 @@ def test_live_friction_jacobian_matches_finite_differences_in_positions_and_spin
     included."""
     x, R, lag = _friction_case()
     bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    i, j = lag.pairs[:, 0], lag.pairs[:, 1]
+    # the contact points on both sections (the lag's arms) and their separation
+    c_i = np.einsum("kab,kb->ka", R[i], lag.arm_i)
+    c_j = np.einsum("kab,kb->ka", R[j], lag.arm_j)
+    delta = x[i] + c_i - x[j] - c_j
     for eps_v in (1e-2, 1e-4):               # mostly sticking / mostly slipping
         w = friction_live(x, R, lag, bw, mu=0.3, eps_v=eps_v)
-        assert np.allclose(w.gradient, friction_work(x, R, lag, 0.3, eps_v).gradient,
+        lagged = friction_work(x, R, lag, 0.3, eps_v)
+        # where the lag was taken the forces are the lag's; the live friction
+        # applies both of a pair's forces at the midpoint of its two points
+        assert np.allclose(w.force, lagged.force, rtol=1e-12, atol=1e-14)
+        assert np.allclose(w.gradient[:, :3], lagged.gradient[:, :3], rtol=1e-12, atol=1e-14)
+        shift = np.zeros((len(x), 3))
+        arm = np.cross(-0.5 * delta, -w.force)              # the arm moved by -delta / 2
+        np.add.at(shift, i, arm)
+        np.add.at(shift, j, arm)
+        assert np.allclose(w.gradient[:, 3:], lagged.gradient[:, 3:] + shift,
                            rtol=1e-12, atol=1e-14)
+        assert np.abs(shift).max() > 1e-3 * np.abs(lagged.gradient[:, 3:]).max()
+        # so the pairs' forces and moments balance exactly (about any point);
+        # the lagged potential's leave the couples delta x phi
+        f, m = w.gradient[:, :3], w.gradient[:, 3:]
+        scale = np.abs(f).max() * np.abs(x).max()
+        assert np.abs(f.sum(axis=0)).max() <= 1e-14 * np.abs(f).max() * len(x)
+        assert np.abs((np.cross(x, f) + m).sum(axis=0)).max() <= 1e-13 * scale
+        fl, ml_ = lagged.gradient[:, :3], lagged.gradient[:, 3:]
+        assert np.abs((np.cross(x, fl) + ml_).sum(axis=0)).max() > 1e-6 * scale
         rng = np.random.default_rng(11)
         v = rng.standard_normal((len(x), 6))
         h = 1e-7

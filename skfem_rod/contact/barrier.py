@@ -479,7 +479,12 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True):
     the separation of the two points projected on the plane normal to the
     live normal.  Its Jacobian (``jacobian``) is exact and not symmetric:
     ``phi``'s change with the slip, with the normal and with the normal
-    force, and the rotation acting on the arms.  ``energy`` is nan; a pair
+    force, and the rotation acting on the arms.  Both of a pair's forces
+    act at the midpoint of its two material points (``delta`` apart), so
+    that the pair exerts no net couple: the moments balance exactly
+    (:func:`friction_work`, a potential's gradient, leaves the couple
+    ``delta x phi``, small: ``delta``'s normal part is within the
+    barrier's width).  ``energy`` is nan; a pair
     at or inside the contact distance gives an infinite force."""
     n_nodes = x.shape[0]
     grad = np.zeros((n_nodes, 6))
@@ -499,6 +504,13 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True):
     ml = mu * lam
     phi = (ml * ratio)[:, None] * u
     _scatter(grad, i, j, c_i, c_j, phi)
+    # both forces at one point, the material points' midpoint (they are
+    # delta apart): the pair then exerts no couple, and the moments
+    # balance exactly (applied at the two points, the pair would leave
+    # delta x phi); on each section the moment arm moves by -delta / 2
+    couple = -0.5 * cross(delta, phi)
+    np.add.at(grad[:, 3:], i, couple)
+    np.add.at(grad[:, 3:], j, couple)
     H = None
     if jacobian:
         J = _points_jacobian(c_i, c_j)
@@ -509,13 +521,18 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True):
         Ju = P @ J
         Ju[:, :, 0:3] -= A
         Ju[:, :, 6:9] += A
-        blk = np.einsum("kai,kab,kbj->kij", J, _law(u, y, ratio, c, ml), Ju)
-        _arms_turn(blk, c_i, c_j, phi)
+        dphi = _law(u, y, ratio, c, ml) @ Ju                 # d phi / dy, (k, 3, 12)
         # the normal force's own change: lambda(g), g = |x_i - x_j| - D
-        dF = np.einsum("kai,ka->ki", J, (mu * ratio)[:, None] * u)   # dF / d lambda
         dg = dlam[:, None] * nrm                          # d lambda / d x_i
-        blk[:, :, 0:3] += dF[:, :, None] * dg[:, None, :]
-        blk[:, :, 6:9] -= dF[:, :, None] * dg[:, None, :]
+        dphi_dlam = (mu * ratio)[:, None] * u
+        dphi[:, :, 0:3] += dphi_dlam[:, :, None] * dg[:, None, :]
+        dphi[:, :, 6:9] -= dphi_dlam[:, :, None] * dg[:, None, :]
+        blk = np.einsum("kai,kaj->kij", J, dphi)
+        _arms_turn(blk, c_i, c_j, phi)
+        # the couple's change: -(d delta x phi + delta x d phi) / 2
+        dcouple = 0.5 * (hat(phi) @ J - hat(delta) @ dphi)
+        blk[:, 3:6, :] += dcouple
+        blk[:, 9:12, :] += dcouple
         H = _assemble(blk, i, j, n_nodes)
     return FrictionWork(np.nan, grad, H, -phi, y)
 
