@@ -59,10 +59,9 @@ Newton on E (the energy; with friction, E + D at the lag):
         `halvings` halvings compute the update again with the shift raised
         a hundredfold, at most `retries` times
 """
+import warnings
 from dataclasses import dataclass, field
 from typing import Optional
-
-import warnings
 
 import numpy as np
 import scipy.sparse as sp
