@@ -58,10 +58,13 @@ Newton on E (the energy; with friction, E + D at the lag):
         the energy's round-off: until the residual falls); after
         `halvings` halvings compute the update again with the shift raised
         a hundredfold, at most `retries` times
+    after more than CURVATURE_AFTER shifted iterations in a row (a creep
+        near a saddle): also a step along the tangent's negative lowest
+        mode, taken where it lowers the energy more (_curvature_step)
 """
 import warnings
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -81,6 +84,19 @@ __all__ = ["BarrierResolution", "EnergyOptions", "EnergySolve", "StepReport", "s
 LIVE_HALVINGS = 6
 #: the first shift of the live Newton's tangent (times diag|K|)
 LIVE_SHIFT_START = 1e-4
+#: energy Newton, where the tangent has needed a shift at more than
+#: CURVATURE_AFTER iterations in a row (creeping near a saddle): also try
+#: a step along its lowest mode (:meth:`EnergySolve._curvature_step`):
+#: the mode by CURVATURE_ITERATIONS inverse iterations, the step moving no
+#: node by more than CURVATURE_LENGTH radii, taken only where its
+#: quadratic model promises CURVATURE_GAIN times the Newton step's energy
+#: drop (at most CURVATURE_HALVINGS halvings) and its energy is lower
+NEGATIVE_CURVATURE = True
+CURVATURE_AFTER = 10
+CURVATURE_ITERATIONS = 8
+CURVATURE_LENGTH = 1.0
+CURVATURE_GAIN = 2.0
+CURVATURE_HALVINGS = 4
 #: the live tangent's LU keeps a diagonal pivot unless it is below this
 #: share of its column's largest entry (SuperLU's diag_pivot_thresh)
 LIVE_PIVOT = 0.01
@@ -126,6 +142,14 @@ class EnergyOptions:
                 raise ValueError(f"EnergyOptions {name} must be an integer >= 1, not {v!r}")
 
 
+class Factor(NamedTuple):
+    """The energy Newton's factorization of its shifted tangent on the free
+    dofs: the LU, the unshifted tangent and ``D = diag|K|``."""
+    lu: object
+    K: object
+    d: np.ndarray
+
+
 @dataclass
 class StepReport:
     """What one step took."""
@@ -134,6 +158,7 @@ class StepReport:
     shifts: int = 0               # factorizations refused as not positive definite
     halvings: int = 0
     retries: int = 0
+    curvature_steps: int = 0      # updates along the tangent's negative lowest mode
     lags: int = 0                 # friction lags solved
     fallbacks: int = 0            # live solves that failed (then solved on the energy)
     live: bool = False            # friction at the state's own normal forces (else the lag's)
@@ -274,7 +299,7 @@ class EnergySolve:
                 raise np.linalg.LinAlgError("non-finite Newton update")
             dy = np.zeros_like(G)
             dy[free] = x
-            return dy, sigma
+            return dy, sigma, None
         while True:
             A = Kf if sigma == 0 else (Kf + sp.diags(sigma * d)).tocsc()
             try:
@@ -290,11 +315,64 @@ class EnergySolve:
             if definite and np.all(np.isfinite(x)):
                 dy = np.zeros_like(G)
                 dy[free] = x
-                return dy, sigma
+                return dy, sigma, Factor(lu, Kf, d)
             sigma = o.shift_start if sigma == 0 else 10 * sigma
             rep.shifts += 1
             if sigma > 1e12:
                 raise np.linalg.LinAlgError("no positive definite shift below 1e12")
+
+    def _curvature_step(self, r, R, lam, lag, E, G, dy, factor, newton_drop):
+        """A step along the tangent's lowest mode where it is negative (the
+        escape from a saddle that the shifted Newton creeps away from):
+        the mode by inverse iteration with the shifted factorization
+        (``(K + sigma D)^-1 D``, ``D = diag|K|``, whose largest eigenvalue
+        is the pencil's lowest) from the Newton update ``dy``, turned
+        downhill, scaled to
+        move no node by more than ``CURVATURE_LENGTH`` radii nor turn one
+        by more than ``max_spin``, bounded by the collision bound, halved
+        until the energy falls by the Armijo share of its quadratic model
+        -- while that model promises ``CURVATURE_GAIN`` times the Newton
+        step's drop ``newton_drop``.  Returns ``(r, R, E, parts)`` or None
+        (no negative mode, no promising or no accepted step)."""
+        o, P, free = self.options, self.P, self.free
+        lu, Kf, d = factor
+        # from the Newton update: where the lowest mode is degenerate (a
+        # round section buckles in any plane) the estimate keeps to the
+        # plane the loads push towards
+        v = dy[free] / max(float(np.linalg.norm(dy[free])), 1e-300)
+        for _ in range(CURVATURE_ITERATIONS):
+            v = lu.solve(d * v)
+            v /= np.linalg.norm(v)
+        curv = float(v @ (Kf @ v)) / float(v @ (d * v))
+        if not curv < 0:
+            return None
+        g = G[free]
+        if float(g @ v) > 0:
+            v = -v
+        step = np.zeros_like(G)
+        step[free] = v
+        s6 = step.reshape(-1, 6)
+        scale = min(CURVATURE_LENGTH * self.radius
+                    / max(float(np.linalg.norm(s6[:, :3], axis=1).max()), 1e-300),
+                    o.max_spin / max(float(np.linalg.norm(s6[:, 3:], axis=1).max()), 1e-300))
+        step *= scale
+        slope = float(g @ step[free])
+        quad = curv * float(step[free] @ (d * step[free]))
+        t = min(1.0, step_bound(r, step.reshape(-1, 6)[:, :3], self.s, self.barrier,
+                                o.fraction))
+        for halving in range(CURVATURE_HALVINGS):
+            if -(t * slope + 0.5 * t * t * quad) < CURVATURE_GAIN * newton_drop:
+                return None
+            try:
+                rt, Rt = P.update(r, R, step, t)
+                Et = self._parts(rt, Rt, lam, lag, False)[0]
+            except ElementRotationError:
+                Et = np.inf
+            if np.isfinite(Et) and Et <= E + o.armijo * (t * slope + 0.5 * t * t * quad):
+                parts = self._parts(rt, Rt, lam, lag, True)
+                return rt, Rt, parts[0], parts
+            t *= 0.5
+        return None
 
     def _negative(self, K):
         """The number of negative eigenvalues of ``K`` on the free dofs
@@ -337,6 +415,7 @@ class EnergySolve:
         E = G = K = None
         retries, rn, trial = 0, np.inf, None
         tau = 0.0                   # live: the pseudo-time shift (0: Newton)
+        shifted = 0                 # iterations in a row with a shifted tangent
         while True:
             if G is None:
                 # the accepted trial was evaluated with its tangent: reused
@@ -363,7 +442,7 @@ class EnergySolve:
                                   f"(residual {rn:.3e})")
                     return r, R, sigma
             try:
-                dy, used = self._direction(K, G, tau if live else sigma, rep, live)
+                dy, used, factor = self._direction(K, G, tau if live else sigma, rep, live)
             except np.linalg.LinAlgError as err:
                 rep.reason = str(err)
                 return r, R, sigma
@@ -408,6 +487,13 @@ class EnergySolve:
                 else:
                     sigma = max(100 * used, 1e-3)
                 continue
+            shifted = shifted + 1 if used > 0 else 0
+            if NEGATIVE_CURVATURE and not live and shifted > CURVATURE_AFTER:
+                nc = self._curvature_step(r, R, lam, lag, E, G, dy, factor,
+                                          E - Et if np.isfinite(Et) else np.inf)
+                if nc is not None and (not np.isfinite(Et) or nc[2] < Et):
+                    rt, Rt, Et, trial = nc
+                    rep.curvature_steps += 1
             if live:
                 # a full step taken: plain Newton again (its quadratic tail);
                 # a shortened one: a tenth of the shift

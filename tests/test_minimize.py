@@ -230,3 +230,38 @@ def test_an_unloaded_closed_ring_stays_put():
     assert rep.converged, rep.reason
     assert rep.active == 0
     assert np.abs(r1 - rod.r0).max() < 1e-12
+
+
+def test_a_saddle_is_left_along_its_negative_curvature(monkeypatch):
+    """A straight rod clamped at both ends (the end free to move along the
+    axis, its rotation held), shortened by 2 % of its length, far beyond
+    Euler's (4 pi^2 EI / (EA L^2) = 0.4 %), a lateral dead force 1e-4 at
+    mid-length: Newton from the straight state creeps away from that
+    saddle with its tangent shifted.  The step along the tangent's
+    negative lowest mode leaves it sooner and ends at the same buckled
+    minimum (no negative eigenvalue, the same energy and shape).  Without
+    the lateral force the straight state is an equilibrium, and a saddle,
+    and said to be one (its negative eigenvalues: the two planes of
+    buckling of a round section, and their overtones)."""
+    import skfem_rod.minimize as m
+
+    def solved(imperfection, curvature):
+        monkeypatch.setattr(m, "NEGATIVE_CURVATURE", curvature)
+        rod = Rod(geometry.straight(1.0), Section(EA=1e4, GA1=1e4, GA2=1e4, EI1=1.0, EI2=1.0,
+                                                  GJ=0.8, radius=0.01), 24)
+        rod.clamp("start").fix_rotation("end").prescribe_displacement("end", [-0.02, 0, 0])
+        if imperfection:
+            rod.add_force(0.5, [0.0, imperfection, 0.0])
+        solve = EnergySolve(rod, Barrier.for_nodes(rod.mesh.s_nodes, 0.01), 0.01)
+        r, R, rep = solve.step(rod.r0, rod.R0, 0.0, 1.0)
+        assert rep.converged, rep.reason
+        return r, rep, solve.energy(r, R, 1.0)[0]
+    r0, rep0, E0 = solved(1e-4, False)
+    r1, rep1, E1 = solved(1e-4, True)
+    assert rep0.curvature_steps == 0 and rep1.curvature_steps >= 1
+    assert rep0.negative == rep1.negative == 0
+    assert rep1.iterations < 0.7 * rep0.iterations, (rep0.iterations, rep1.iterations)
+    assert E1 == pytest.approx(E0, rel=1e-9)
+    assert np.abs(r1 - r0).max() <= 1e-6 and np.abs(r1[:, 1]).max() > 0.05   # buckled
+    r, rep, E = solved(0.0, True)
+    assert np.abs(r[:, 1:]).max() == 0.0 and rep.negative >= 2 and E > E0
