@@ -327,12 +327,11 @@ class EnergySolve:
         the mode by inverse iteration with the shifted factorization
         (``(K + sigma D)^-1 D``, ``D = diag|K|``, whose largest eigenvalue
         is the pencil's lowest) from the Newton update ``dy``, turned
-        downhill, scaled to
-        move no node by more than ``CURVATURE_LENGTH`` radii nor turn one
-        by more than ``max_spin``, bounded by the collision bound, halved
-        until the energy falls by the Armijo share of its quadratic model
-        -- while that model promises ``CURVATURE_GAIN`` times the Newton
-        step's drop ``newton_drop``.  Returns ``(r, R, E, parts)`` or None
+        downhill, scaled to move no node by more than ``CURVATURE_LENGTH``
+        radii nor turn one by more than ``max_spin``, bounded by the
+        collision bound, halved until the energy falls by the Armijo share
+        of its quadratic model -- while that model promises
+        ``CURVATURE_GAIN`` times the Newton step's drop ``newton_drop``.  Returns ``(r, R, E, parts)`` or None
         (no negative mode, no promising or no accepted step)."""
         o, P, free = self.options, self.P, self.free
         lu, Kf, d = factor
