@@ -2,7 +2,9 @@ r"""Load steps by Newton on the total energy, with the smooth node barrier of
 :mod:`skfem_rod.contact.barrier` for contact and its lagged Coulomb friction:
 the experiment of issue 13 (docs/contact-solve.md, "A smooth barrier between
 nodes"; ``benchmarks/bench_plectoneme_barrier.py``).  Not the paper's
-augmented-Lagrangian contact, and not yet an option of ``Rod.solve``.
+augmented-Lagrangian contact; ``Rod.solve(..., method="barrier")`` runs
+it (:func:`solve_barrier`: the load path of ``solver.follow_path``, each
+step by :meth:`EnergySolve.step`).
 
 Where every load is dead (forces, no moments, no followers) and motions are
 prescribed, an equilibrium is a stationary point of
