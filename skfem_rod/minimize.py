@@ -180,6 +180,11 @@ class StepReport:
     #: solved state (0: a minimum; more: a saddle, e.g. held by symmetry;
     #: None: not known, e.g. with friction)
     negative: Optional[int] = None
+    #: the out-of-balance force over the dofs where the last solve
+    #: converged: the rod's, the barrier's and the friction it held (at the
+    #: state's own normal forces where ``live``, at its lag's otherwise);
+    #: on the supported dofs the reactions
+    out_of_balance: Optional[np.ndarray] = None
 
 
 class EnergySolve:
@@ -255,15 +260,6 @@ class EnergySolve:
         own normal forces and normals (:func:`friction_live`): zero on the
         free dofs at a converged frictional step."""
         return self._parts(r, R, lam, lag, False, live=True)[1]
-
-    def out_of_balance(self, r, R, lam, rep):
-        """The out-of-balance force over the dofs at the state ``(r, R)``
-        solved by the step of report ``rep``: the rod's, the barrier's and
-        the friction the step converged with (at the state's own normal
-        forces where ``rep.live``, at its lag's otherwise).  Zero on the
-        free dofs up to the tolerance; the reactions on the supported
-        ones."""
-        return self._parts(r, R, lam, rep.friction, False, live=rep.live)[1]
 
     def contact(self, r, R, rep):
         """The node pairs in contact at the state ``(r, R)`` solved by the
@@ -435,6 +431,7 @@ class EnergySolve:
                     rep.floor = P.at_floor(r, R, lam, ev, rn)
                     done = rep.floor is not None
                 if done:
+                    rep.out_of_balance = G
                     if lag is None:      # frictionless: the energy's Hessian's inertia
                         rep.negative = self._negative(K)
                     return r, R, sigma
@@ -743,7 +740,7 @@ class BarrierStepper:
         a :class:`skfem_rod.results.ContactState`."""
         from dataclasses import replace
         from .problem import Report
-        G = self.solve.out_of_balance(r, R, lam, rep)
+        G = rep.out_of_balance                 # as the step's last solve evaluated it
         radius = self.solve.radius
         report = Report(True, iterations=rep.iterations, history=list(rep.history),
                         evaluation=replace(rep.evaluation, residual=G),
