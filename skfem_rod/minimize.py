@@ -77,6 +77,7 @@ from .contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work, fr
                               step_bound)
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
+from .options import EnergyOptions
 from .problem import Problem
 
 __all__ = ["BarrierResolution", "EnergyOptions", "EnergySolve", "StepReport", "solve_barrier"]
@@ -109,39 +110,6 @@ def backward_error(A, x, b):
     (infinity norms): ``|A x - b| / (|A| |x| + |b|)``."""
     scale = float(abs(A).sum(axis=1).max()) * float(np.abs(x).max()) + float(np.abs(b).max())
     return float(np.abs(A @ x - b).max()) / max(scale, 1e-300)
-
-
-@dataclass(frozen=True)
-class EnergyOptions:
-    """Options of :class:`EnergySolve` (names as in the module doc)."""
-    rtol: float = 1e-8
-    max_iterations: int = 3000
-    armijo: float = 1e-4
-    max_spin: float = 0.5
-    fraction: float = 0.8
-    shift_start: float = 1e-6
-    halvings: int = 30
-    retries: int = 6
-    max_lags: int = 60
-    lag_tol: float = 1e-3
-    lag_rtol: float = 1e-5
-    near_rtol: float = 0.1
-    live_iterations: int = 80
-    penetration_tol: float = 1e-3
-    live_tol: float = 0.3
-
-    def __post_init__(self):
-        for name in ("rtol", "armijo", "max_spin", "fraction", "shift_start", "lag_tol",
-                     "lag_rtol", "live_tol", "near_rtol", "penetration_tol"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"EnergyOptions {name} must be a finite number > 0, not {v!r}")
-        if not self.fraction < 1 or not self.armijo < 1:
-            raise ValueError("EnergyOptions fraction and armijo must be below 1")
-        for name in ("max_iterations", "halvings", "retries", "max_lags", "live_iterations"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and v >= 1):
-                raise ValueError(f"EnergyOptions {name} must be an integer >= 1, not {v!r}")
 
 
 class Factor(NamedTuple):
@@ -190,10 +158,12 @@ class StepReport:
 class EnergySolve:
     """The rod ``rod`` (without contact of its own) with the node ``barrier``
     and, with ``mu > 0``, Coulomb friction at the node pairs (slip
-    smoothing ``eps_v``, default 1e-3 of the radius ``radius``)."""
+    smoothing ``eps_v``, default 1e-3 of the radius ``radius``);
+    ``problem`` the rod's :class:`~skfem_rod.problem.Problem` where it is
+    built already."""
 
     def __init__(self, rod, barrier: Barrier, radius, mu=0.0, eps_v=None,
-                 options: Optional[EnergyOptions] = None):
+                 options: Optional[EnergyOptions] = None, problem: Optional[Problem] = None):
         if rod.contact is not None:
             raise ValueError("rod: the node barrier replaces the rod's own contact; build the "
                              "rod without enable_contact (rod.contact must be None)")
@@ -217,7 +187,9 @@ class EnergySolve:
         if not (np.isfinite(self.eps_v) and self.eps_v > 0):
             raise ValueError(f"eps_v must be a finite number > 0, not {eps_v!r}")
         self.options = options or EnergyOptions()
-        P = Problem(rod)
+        if problem is not None and problem.rod is not rod:
+            raise ValueError("problem: it must be the Problem of rod")
+        P = Problem(rod) if problem is None else problem
         if P.T is not None:
             raise ValueError("EnergySolve needs supports along the spatial axes")
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
@@ -618,41 +590,6 @@ class EnergySolve:
 
 # -- Rod.solve(method="barrier") ---------------------------------------
 
-#: the load path's options (:class:`skfem_rod.solver.SolverOptions`) that
-#: ``method="barrier"`` takes; its Newton's are :class:`EnergyOptions`
-PATH_OPTIONS = ("min_step", "grow", "max_rotation_step", "time_limit", "predictor")
-#: the barrier's own options and their defaults (``barrier_force`` None:
-#: :func:`default_force`)
-BARRIER_OPTIONS = {"barrier_width": 0.02, "barrier_force": None, "slip_smoothing": 1e-3}
-
-
-def barrier_options(kwargs):
-    """The options of ``Rod.solve(method="barrier", **kwargs)``, split:
-    ``(SolverOptions of the path, EnergyOptions, width, force,
-    smoothing)``.  The predictor defaults to the secant; an unknown name
-    is an error listing the allowed ones."""
-    from dataclasses import fields
-    from .options import make_options
-    energy_names = [f.name for f in fields(EnergyOptions)]
-    allowed = list(PATH_OPTIONS) + energy_names + list(BARRIER_OPTIONS)
-    unknown = sorted(set(kwargs) - set(allowed))
-    if unknown:
-        raise ValueError(f"unknown option(s) {', '.join(map(repr, unknown))} of "
-                         f"method='barrier'; allowed: {', '.join(allowed)}")
-    path = {k: kwargs[k] for k in PATH_OPTIONS if k in kwargs}
-    path.setdefault("predictor", "secant")
-    energy = EnergyOptions(**{k: kwargs[k] for k in energy_names if k in kwargs})
-    own = {k: kwargs.get(k, v) for k, v in BARRIER_OPTIONS.items()}
-    for k in ("barrier_width", "slip_smoothing") + (("barrier_force",) if own["barrier_force"]
-                                                    is not None else ()):
-        v = own[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                or not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{k} must be a finite number > 0, not {v!r}")
-    return (make_options(path), energy, float(own["barrier_width"]), own["barrier_force"],
-            float(own["slip_smoothing"]))
-
-
 def default_force(problem):
     """The barrier's default force at half its width: the dead loads'
     total size at load factor 1 (the sum of the nodal forces' lengths: a
@@ -680,7 +617,7 @@ class BarrierStepper:
     options, the result being built and the deadline -- what
     :func:`skfem_rod.solver.follow_path` steps (``advance``, ``keep``)."""
 
-    def __init__(self, rod, opts, energy, width, force, smoothing):
+    def __init__(self, rod, opts, energy, own):
         import copy
         from .contact.search import arclength_period
         from .options import Deadline
@@ -693,10 +630,10 @@ class BarrierStepper:
         bare = copy.copy(rod)
         bare.contact = None
         P = Problem(bare)
-        if force is None:
-            force = default_force(P)
-        barrier = Barrier.for_nodes(rod.mesh.s_nodes, c.radius, width=width, force=force,
-                                    exclusion=c.exclusion, period=arclength_period(rod.mesh))
+        force = default_force(P) if own.barrier_force is None else own.barrier_force
+        barrier = Barrier.for_nodes(rod.mesh.s_nodes, c.radius, width=own.barrier_width,
+                                    force=force, exclusion=c.exclusion,
+                                    period=arclength_period(rod.mesh))
         sampling = barrier.distance - 2 * c.radius       # a^2 / (8 eps): the nodes' offset
         if sampling > barrier.width:
             warnings.warn(
@@ -708,7 +645,8 @@ class BarrierStepper:
                 f"the nodes as bumps; refine the mesh to a node spacing below "
                 f"{np.sqrt(8 * c.radius * barrier.width):.3g}", BarrierResolution, stacklevel=4)
         self.solve = EnergySolve(bare, barrier, c.radius, mu=c.gamma_T,
-                                 eps_v=smoothing * c.radius, options=energy)
+                                 eps_v=own.slip_smoothing * c.radius, options=energy,
+                                 problem=P)
         self.rod, self.opts = rod, opts
         self.result = Result(rod)
         self.deadline = Deadline(opts.time_limit)
@@ -792,21 +730,22 @@ def solve_barrier(rod, n_steps=1, path=None, callback=None, start=None, **kwargs
     """``Rod.solve(method="barrier")``: the load path of
     :func:`skfem_rod.solver.follow_path` (step cutting, the deadline), each
     step solved by :meth:`EnergySolve.step` with the rod's contact
-    (radius, exclusion, ``gamma_T``) replaced by the node barrier.  Options:
-    :data:`PATH_OPTIONS`, the fields of :class:`EnergyOptions`,
-    ``barrier_width`` (times the radius), ``barrier_force`` (a pair's force
-    at half the width; :func:`default_force`) and ``slip_smoothing`` (the
-    friction's, times the radius).  Returns a
-    :class:`skfem_rod.results.Result`."""
+    (radius, exclusion, ``gamma_T``) replaced by the node barrier.  Options
+    (:func:`skfem_rod.options.barrier_specs`): the path's
+    (:data:`skfem_rod.options.BARRIER_PATH`), the fields of
+    :class:`~skfem_rod.options.EnergyOptions` and of
+    :class:`~skfem_rod.options.BarrierOptions` (``barrier_force`` None:
+    :func:`default_force`).  Returns a :class:`skfem_rod.results.Result`."""
+    from .options import split_barrier_options
     from .solver import follow_path, load_path, start_state
     if rod.contact is None:
         raise ValueError("method='barrier' is a contact solve: switch contact on with "
                          "rod.enable_contact(...) (its radius, exclusion and gamma_T are used)")
     rod.check_steps(n_steps)
     times, values = load_path(path)
-    opts, energy, width, force, smoothing = barrier_options(kwargs)
+    opts, energy, own = split_barrier_options(kwargs)
     rod.check_constraints()
-    S = BarrierStepper(rod, opts, energy, width, force, smoothing)
+    S = BarrierStepper(rod, opts, energy, own)
     r0, R0 = (rod.r0, rod.R0) if start is None else start_state(rod, start)
     r, R, rep = S.initial(np.array(r0, dtype=float), np.array(R0, dtype=float))
     if not rep.converged:

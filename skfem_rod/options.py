@@ -4,7 +4,9 @@
 load stepping (:mod:`skfem_rod.solver`), the gradient flow
 (:mod:`skfem_rod.relax`) and continuation (:mod:`skfem_rod.continuation`);
 :func:`make_options` builds it from keyword arguments with a clear error for
-unknown names.  The contact options are
+unknown names.  ``Rod.solve(method="barrier")`` takes some of them and
+:class:`EnergyOptions` and :class:`BarrierOptions` instead
+(:func:`split_barrier_options`).  The contact options are
 :class:`skfem_rod.contact.ContactOptions`.
 """
 import difflib
@@ -27,6 +29,7 @@ class Spec:
     hi: float = None
     lo_open: bool = True
     choices: tuple = ()
+    hi_open: bool = False
 
     def allowed(self):
         """The allowed values in words (error messages, docs tables)."""
@@ -40,7 +43,8 @@ class Spec:
                     else f"an integer >= {self.lo}")
         op = ">" if self.lo_open else ">="
         words = "a finite number" + (f" {op} {self.lo:g}" if self.lo is not None else "")
-        return words + (f" and <= {self.hi:.17g}" if self.hi is not None else "")
+        return words + (f" and {'<' if self.hi_open else '<='} {self.hi:.17g}"
+                        if self.hi is not None else "")
 
     def check(self, name, v):
         """``v`` if it is allowed, else ValueError naming ``name``, the
@@ -57,7 +61,7 @@ class Spec:
             ok = (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
                   and np.isfinite(v)
                   and (self.lo is None or v > self.lo or (not self.lo_open and v == self.lo))
-                  and (self.hi is None or v <= self.hi))
+                  and (self.hi is None or v < self.hi or (not self.hi_open and v == self.hi)))
         if not ok:
             raise ValueError(f"{name} must be {self.allowed()}, got {v!r}")
         return v
@@ -261,6 +265,98 @@ class SolverOptions:
                              "pseudo-dynamics crosses the snaps itself (use snap='cut')")
 
 
+@dataclass(frozen=True)
+class EnergyOptions:
+    """Controls of the energy Newton of ``Rod.solve(method="barrier")``
+    (:class:`skfem_rod.minimize.EnergySolve`; the names as in the module
+    doc of :mod:`skfem_rod.minimize`)."""
+    rtol: float = _pos(1e-8, "residual tolerance of a step (relative to the force scale)")
+    max_iterations: int = _opt(3000, "integer", "Newton iterations per step (all friction "
+                                                "lags) before the step is cut",
+                               lo=1, hi=10_000_000)
+    armijo: float = _opt(1e-4, "number", "Armijo fraction of the slope a line search's "
+                                         "energy must fall by", lo=0.0, hi=1.0, hi_open=True)
+    max_spin: float = _pos(0.5, "largest nodal spin of one Newton update (rad)")
+    fraction: float = _opt(0.8, "number", "largest share of the way to the first node-pair "
+                                          "contact an update may go", lo=0.0, hi=1.0,
+                           hi_open=True)
+    shift_start: float = _pos(1e-6, "first shift of a tangent that is not positive definite "
+                                    "(times the tangent's diagonal)")
+    halvings: int = _opt(30, "integer", "line-search halvings before the shift is raised",
+                         lo=1, hi=1000)
+    retries: int = _opt(6, "integer", "raises of the shift (100x) per iteration", lo=1,
+                        hi=100)
+    max_lags: int = _opt(60, "integer", "friction: lags of the normal forces per step",
+                         lo=1, hi=100_000)
+    lag_tol: float = _pos(1e-3, "friction: the fallback's lag settled when no normal force "
+                                "changes by more than this times the largest")
+    lag_rtol: float = _pos(1e-5, "friction: residual tolerance of the fallback's solves")
+    near_rtol: float = _pos(0.1, "friction: residual tolerance of the solves that settle "
+                                 "the lag before the live Newton")
+    live_iterations: int = _opt(80, "integer", "friction: live Newton iterations per lag",
+                                lo=1, hi=10_000_000)
+    penetration_tol: float = _pos(1e-3, "a step converges only where the strands' true "
+                                        "least distance is at least 2 radius (1 - this)")
+    live_tol: float = _pos(0.3, "friction: the lag settled for the live Newton when no "
+                                "normal force changes by more than this times the largest")
+
+    def __post_init__(self):
+        for f in fields(self):
+            f.metadata["spec"].check(f.name, getattr(self, f.name))
+
+
+@dataclass(frozen=True)
+class BarrierOptions:
+    """The node barrier's own options (``Rod.solve(method="barrier")``,
+    :mod:`skfem_rod.contact.barrier`)."""
+    barrier_width: float = _pos(0.02, "width of the barrier (times the contact radius)")
+    barrier_force: float = _opt(None, "number", "a pair's force at half the width (default: "
+                                                "the dead loads' total, at least EI/L^2)",
+                                lo=0.0)
+    slip_smoothing: float = _pos(1e-3, "slip below which the friction force is smoothed "
+                                       "(times the radius)")
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not (v is None and f.name == "barrier_force"):      # None: the default
+                f.metadata["spec"].check(f.name, v)
+
+
+#: the load path's options (:class:`SolverOptions`) that
+#: ``Rod.solve(method="barrier")`` takes; its predictor defaults to the secant
+BARRIER_PATH = ("min_step", "grow", "max_rotation_step", "time_limit", "predictor")
+
+
+def barrier_specs():
+    """``{name: (Spec, default)}`` of every option of
+    ``Rod.solve(method="barrier")``: :data:`BARRIER_PATH`, then
+    :class:`EnergyOptions`, then :class:`BarrierOptions`."""
+    path = {n: option_specs()[n] for n in BARRIER_PATH}
+    path["predictor"] = (path["predictor"][0], "secant")
+    return {**path, **option_specs(EnergyOptions), **option_specs(BarrierOptions)}
+
+
+def split_barrier_options(kwargs):
+    """The options of ``Rod.solve(method="barrier", **kwargs)``, checked
+    and split: ``(SolverOptions of the path, EnergyOptions,
+    BarrierOptions)``.  An unknown name is an error listing the allowed
+    ones."""
+    specs = barrier_specs()
+    unknown = sorted(set(kwargs) - set(specs))
+    if unknown:
+        close = difflib.get_close_matches(unknown[0], list(specs), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ValueError(f"unknown option(s) {', '.join(map(repr, unknown))} of "
+                         f"method='barrier'{hint}; allowed: {', '.join(specs)}")
+
+    def part(names):
+        return {k: kwargs.get(k, specs[k][1]) for k in names}
+    return (make_options(part(BARRIER_PATH)),
+            EnergyOptions(**part(f.name for f in fields(EnergyOptions))),
+            BarrierOptions(**part(f.name for f in fields(BarrierOptions))))
+
+
 class Deadline:
     """The wall clock of ``SolverOptions.time_limit`` from the start of a
     solve: :meth:`passed` is checked by the solver loops before each step."""
@@ -279,8 +375,8 @@ class Deadline:
 
 def option_specs(cls=None):
     """``{name: (Spec, default)}`` of the fields of ``cls`` (default
-    :class:`SolverOptions`): what the scene format and the docs tables are
-    built from."""
+    :class:`SolverOptions`; :class:`EnergyOptions`, :class:`BarrierOptions`):
+    what the scene format and the docs tables are built from."""
     cls = SolverOptions if cls is None else cls
     return {f.name: (f.metadata["spec"], f.default) for f in fields(cls)}
 

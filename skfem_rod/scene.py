@@ -475,19 +475,28 @@ CONTACT = _contact_keys()
 
 
 def _solver_keys():
-    from .options import option_specs
-    keys = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
-            "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times")}
-    keys.update({n: Key(_checker(spec), default, spec.doc)
-                 for n, (spec, default) in option_specs().items()})
-    keys["method"] = Key(Choice("newton", "arclength"), "newton",
-                         "load stepping, or pseudo-arclength continuation (through limit "
-                         "points; path must be [0, lam_end], n_steps sets the first step)")
-    keys["max_steps"] = Key(Integer(1, 1_000_000), 200, "arclength: most continuation steps")
-    return keys
+    """The [solver] table: the keys of every method, and each method's own
+    (from the option specs of :mod:`skfem_rod.options`)."""
+    from .options import barrier_specs, option_specs
+    common = {"n_steps": Key(Integer(1, 1_000_000), 1, "equal pseudo-time steps"),
+              "path": Key(LoadPath(), [0.0, 1.0], "load factors at equal pseudo-times"),
+              "method": Key(Choice(*METHODS), "newton",
+                            "load stepping; pseudo-arclength continuation (through limit "
+                            "points; path must be [0, lam_end], n_steps sets the first "
+                            "step); or the node barrier's energy Newton (contact on)")}
+
+    def keys(specs):
+        return {n: Key(_checker(spec), default, spec.doc)
+                for n, (spec, default) in specs.items()}
+    newton = keys(option_specs())
+    arclength = {**newton, "max_steps": Key(Integer(1, 1_000_000), 200,
+                                            "arclength: most continuation steps")}
+    return common, {"newton": newton, "arclength": arclength, "barrier": keys(barrier_specs())}
 
 
-SOLVER = _solver_keys()
+#: the solve methods of the [solver] table (``Rod.solve(method=...)``)
+METHODS = ("newton", "arclength", "barrier")
+SOLVER_COMMON, SOLVER_METHODS = _solver_keys()
 
 OUTPUT = {
     "directory": Key(Directory(), None, "output directory (default output/<scene name>)"),
@@ -611,6 +620,26 @@ def _section_kind(table, checker):
     return next(iter(present), "stiffness")
 
 
+def _check_barrier(c, out):
+    """What ``method = "barrier"`` needs of the rest of a scene: contact on
+    without rotational friction, and dead forces (an energy)."""
+    cont = out.get("contact")
+    if not (cont and cont.get("enabled")):
+        c.bad('solver.method = "barrier" is a contact solve: add a [contact] table with '
+              "enabled = true (its radius, exclusion and gamma_T are used)")
+    elif (cont.get("gamma_R") or 0) > 0:
+        c.bad(f'contact.gamma_R = {show_value(cont["gamma_R"])}: solver.method = "barrier" '
+              'has tangential friction only (gamma_T); rotational friction needs method = '
+              '"newton"')
+    for k, load in enumerate(out.get("load") or []):
+        if load is None:
+            continue
+        if load["kind"] in ("moment", "distributed_torque") or load.get("follower"):
+            what = "a follower force" if load["kind"] == "force" else f'a {load["kind"]}'
+            c.bad(f'load[{k}] is {what}: solver.method = "barrier" minimizes an energy and '
+                  "takes dead forces only (prescribe rotations by a support instead)")
+
+
 def validate_data(data):
     c = _Checker()
     if not isinstance(data, dict):
@@ -668,15 +697,21 @@ def validate_data(data):
                                          f"[[{name}]]"))
 
     # [contact], [solver], [output] -----------------------------------------
-    for name, spec in (("contact", CONTACT), ("solver", SOLVER), ("output", OUTPUT)):
+    for name, spec in (("contact", CONTACT), ("output", OUTPUT)):
         if name in data and c.table(name, data[name], f"[{name}]"):
             c.keys(name, data[name], list(spec), f"[{name}]")
             out[name] = c.fill(name, data[name], spec)
-    out.setdefault("solver", {k: key.default for k, key in SOLVER.items()})
-    sv = out["solver"]
+    if "solver" in data and c.table("solver", data["solver"], "[solver]"):
+        out["solver"] = c.typed("solver", data["solver"], "method", SOLVER_METHODS,
+                                SOLVER_COMMON, "[solver]", default_tag="newton")
+    sv = out.get("solver") or {}
+    out.setdefault("solver", {k: key.default for k, key in
+                              {**SOLVER_COMMON, **SOLVER_METHODS["newton"]}.items()})
     if sv.get("method") == "arclength" and len(sv.get("path") or []) != 2:
         c.bad(f"solver.path: with method = \"arclength\" the path must be [0, lam_end] "
               f"(the continuation turns back by itself), got {sv.get('path')!r}")
+    if sv.get("method") == "barrier":
+        _check_barrier(c, out)
     if "sweep" in data:        # each swept value validated as the key it replaces
         from .sweep_table import validate_sweep
         out["sweep"], problems = validate_sweep(
@@ -808,9 +843,11 @@ def _build(d):
 
 
 def _solver_options(d):
-    s = d["solver"]
-    drop = ("n_steps", "path") + (("max_steps",) if s.get("method") != "arclength" else ())
-    return {k: v for k, v in s.items() if k not in drop}
+    """The [solver] table's keyword arguments of ``Rod.solve`` besides
+    ``n_steps`` and ``path`` (a key left at None takes the solve's
+    default: the barrier's force)."""
+    return {k: v for k, v in d["solver"].items()
+            if k not in ("n_steps", "path") and v is not None}
 
 
 # ---------------------------------------------------------------------------

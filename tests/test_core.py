@@ -296,38 +296,61 @@ def test_step_zero_with_contact_and_preloads_solves_contact_in_full():
     assert res.steps[1].contact.uzawa == 0
 
 
-def _docs_table(table):
-    """``(key, default cell)`` rows of docs/scenes.md's ``[table]`` table;
-    asserts that no key has two rows."""
+def _docs_table(table, heading=None):
+    """``(key, default cell)`` rows of docs/scenes.md's ``[table]`` table
+    (the one under ``heading``); asserts that no key has two rows."""
     import re
     text = (PKG.parent / "docs" / "scenes.md").read_text()
-    block = text.split(f"### `[{table}]`", 1)[1].split("\n#", 1)[0]
+    block = text.split(heading or f"### `[{table}]`", 1)[1].split("\n#", 1)[0]
     rows = re.findall(r"^\| `(\w+)` \| [^|]+ \| ([^|]+) \|", block, flags=re.M)
     names = [n for n, _ in rows]
     assert len(names) == len(set(names)), f"duplicate rows in [{table}]"
     return rows
 
 
+def _docs_value(cell):
+    """The default a docs table's cell states (None: in words)."""
+    c = cell.strip().strip("`").strip()
+    if c in ("true", "false"):
+        return c == "true"
+    if c.startswith('"'):
+        return c.strip('"')
+    try:
+        return float(eval(c, {"pi": np.pi}))      # numbers like 1e-10, pi / 2
+    except (NameError, SyntaxError):
+        return None
+
+
+def _check_defaults(rows, specs):
+    defaults = dict(rows)
+    for name, (spec, default) in specs.items():
+        got = _docs_value(defaults[name])
+        assert got == default or (isinstance(default, float) and np.isclose(got, default)), name
+
+
 def test_docs_solver_table_matches_the_option_specs():
     """docs/scenes.md's [solver] table has one row per key of the scene's
-    [solver] table (built from SolverOptions' specs), each with its
-    default: the docs cannot drift from the one place options are checked."""
+    [solver] table with method "newton" or "arclength" (built from
+    SolverOptions' specs), each with its default: the docs cannot drift from
+    the one place options are checked."""
     from skfem_rod import scene
     from skfem_rod.options import option_specs
     rows = _docs_table("solver")
-    assert set(n for n, _ in rows) == set(scene.SOLVER)
+    assert set(n for n, _ in rows) == (set(scene.SOLVER_COMMON) | set(scene.SOLVER_METHODS[
+        "newton"]) | set(scene.SOLVER_METHODS["arclength"]))
+    _check_defaults(rows, option_specs())
 
-    def value(cell):
-        c = cell.strip().strip("`").strip()
-        if c in ("true", "false"):
-            return c == "true"
-        if c.startswith('"'):
-            return c.strip('"')
-        return float(eval(c, {"pi": np.pi}))      # numbers like 1e-10, pi / 2
-    defaults = dict(rows)
-    for name, (spec, default) in option_specs().items():
-        got = value(defaults[name])
-        assert got == default or (isinstance(default, float) and np.isclose(got, default)), name
+
+def test_docs_barrier_table_matches_the_option_specs():
+    """The table of [solver] with method = "barrier" has one row per key the
+    method takes besides n_steps, path and method, with its default (the
+    barrier's force, computed when absent, in words)."""
+    from skfem_rod import scene
+    from skfem_rod.options import barrier_specs
+    rows = _docs_table("solver", '#### `[solver]` with `method = "barrier"`')
+    assert set(n for n, _ in rows) == set(barrier_specs()) == set(
+        scene.SOLVER_METHODS["barrier"])
+    _check_defaults(rows, barrier_specs())
 
 
 @pytest.mark.parametrize("curve", ["elements", "smooth"])

@@ -28,6 +28,8 @@ except ModuleNotFoundError:                      # Python 3.10
     import tomli as tomllib
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+#: every key of the [solver] table, of any method
+SOLVER_KEYS = set(scene_mod.SOLVER_COMMON).union(*scene_mod.SOLVER_METHODS.values())
 SCENES = ROOT / "scenes"
 SMALL = {  # (n_elements, n_steps) at which each example still converges quickly
     "rollup": (8, 2), "cantilever": (8, 2), "bend45": (8, 12), "hairpin_contact": (12, 4)}
@@ -184,10 +186,10 @@ def test_build_gives_a_fresh_rod_and_load_unload_path_writes_a_series(tmp_path):
 
 
 def test_schema_covers_the_solver_and_contact_options_and_the_docs():
-    assert {f.name for f in fields(SolverOptions)} <= set(scene_mod.SOLVER)
+    assert {f.name for f in fields(SolverOptions)} <= set(scene_mod.SOLVER_METHODS["newton"])
     assert {f.name for f in fields(ContactOptions)} <= set(scene_mod.CONTACT)
     docs = (ROOT / "docs" / "scenes.md").read_text()
-    keys = set(scene_mod.TOP) | set(scene_mod.ROD) | set(scene_mod.SOLVER) \
+    keys = set(scene_mod.TOP) | set(scene_mod.ROD) | set(SOLVER_KEYS) \
         | set(scene_mod.CONTACT) | set(scene_mod.OUTPUT) \
         | set(scene_mod.SUPPORT_COMMON) | set(scene_mod.LOAD_COMMON)
     for group in (scene_mod.GEOMETRY, scene_mod.SECTIONS, scene_mod.SUPPORTS, scene_mod.LOADS):
@@ -238,7 +240,13 @@ def test_out_of_range():
 def test_unknown_key_with_suggestion():
     msg = problem(with_(BASE, ["solver", "max_iteration"], 3))
     assert msg.startswith('solver.max_iteration is not a known key; did you mean '
-                          '"max_iterations"? Allowed in [solver]: n_steps, path, rtol')
+                          '"max_iterations"? Allowed in [solver] (method = "newton"): '
+                          'n_steps, path, method, rtol')
+    # a key of another solve method: say which methods have it
+    msg = problem(with_(BASE, ["solver", "barrier_width"], 0.05))
+    assert 'solver.barrier_width is not a known key here (only for method = "barrier")' in msg
+    msg = problem(with_(BASE, ["solver", "max_steps"], 10))
+    assert 'solver.max_steps is not a known key here (only for method = "arclength")' in msg
     msg = problem(with_(BASE, ["supports"], []))
     assert msg.startswith('supports is not a known key; did you mean "support"?')
     # a key of another kind of support: say which kinds have it
@@ -314,7 +322,7 @@ def test_invalid_toml_and_missing_file(tmp_path):
 # ---------------------------------------------------------------------------
 WORDS = ["start", "end", "clamp", "pin", "force", "moment", "straight", "arc", "helix",
          "polyline", "circle", "matrix", "stiffness", "iso", "", "x"]
-KEYS = sorted(set(scene_mod.TOP) | set(scene_mod.ROD) | set(scene_mod.SOLVER)
+KEYS = sorted(set(scene_mod.TOP) | set(scene_mod.ROD) | set(SOLVER_KEYS)
               | set(scene_mod.OUTPUT) | set(scene_mod.CONTACT)
               | {"type", "kind", "where", "vector", "length", "radius", "points",
                  "components", "E", "nu", "EA", "matrix"})
@@ -535,3 +543,54 @@ def test_cli_demo(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(cli, "demos_dir", lambda: tmp_path / "absent")
     assert cli.main(["demo", "quick"]) == 2
     assert "examples are missing" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------
+# [solver] method = "barrier"
+# ---------------------------------------------------------------------------
+@pytest.mark.filterwarnings("ignore::skfem_rod.minimize.BarrierResolution")
+def test_a_barrier_scene_is_the_rods_barrier_solve(tmp_path, capsys):
+    """A scene with method = "barrier" solves as Rod.solve(method="barrier")
+    with its options (the barrier's rtol, not SolverOptions'), and the CLI
+    writes its steps with their contact."""
+    d = with_(read("hairpin_contact"), ["output"], {"json": True})
+    d["rod"]["n_elements"] = SMALL["hairpin_contact"][0]
+    d["solver"] = {"n_steps": 4, "method": "barrier", "rtol": 1e-10, "barrier_width": 0.05}
+    path = write_scene(tmp_path, d)
+    got = load_scene(path).solve()
+    assert got.converged, got.message
+    rod = load_scene(path).build()
+    want = rod.solve(4, method="barrier", rtol=1e-10, barrier_width=0.05)
+    assert [s.iterations for s in got.steps] == [s.iterations for s in want.steps]
+    assert np.allclose(got.steps[-1].r, want.steps[-1].r, rtol=0, atol=1e-14)
+    assert got.steps[-1].contact.force.size > 0
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
+    data = json.loads((tmp_path / "o" / "s.json").read_text())
+    assert data["converged"] and data["input"]["solver"]["method"] == "barrier"
+    assert data["steps"][-1]["active_contacts"] == got.steps[-1].contact.force.size
+
+
+def test_a_barrier_scene_needs_contact_dead_forces_and_its_own_keys(tmp_path, capsys):
+    base = with_(BASE, ["solver"], {"method": "barrier"})
+    base["load"].pop()                                   # the distributed torque
+    msg = problem(base)
+    assert 'solver.method = "barrier" is a contact solve: add a [contact] table' in msg
+    on = with_(base, ["contact"], {"enabled": True, "gamma_R": 0.1})
+    assert 'contact.gamma_R = 0.1: solver.method = "barrier" has tangential friction' \
+        in problem(on)
+    on["contact"]["gamma_R"] = 0.0
+    on["load"].append({"kind": "moment", "where": "end", "vector": [0, 0, 1.0]})
+    assert 'load[1] is a moment: solver.method = "barrier" minimizes an energy' in problem(on)
+    on["load"][1] = {"kind": "force", "where": "end", "vector": [0, 0, 1.0], "follower": True}
+    assert "load[1] is a follower force" in problem(on)
+    on["load"].pop()
+    load_scene_data = scene_mod.validate_data(on)             # now valid
+    assert load_scene_data["solver"]["predictor"] == "secant"
+    assert load_scene_data["solver"]["rtol"] == 1e-8         # EnergyOptions' default
+    assert problem(with_(on, ["solver", "barrier_width"], -1.0)).startswith(
+        "solver.barrier_width = -1.0: expected a finite number > 0")
+    assert 'only for method = "newton" or "arclength"' in problem(
+        with_(on, ["solver", "line_search"], False))
+    path = write_scene(tmp_path, with_(on, ["contact", "enabled"], False))
+    assert cli.main(["check", str(path)]) == 2
+    assert 'is a contact solve' in capsys.readouterr().err
