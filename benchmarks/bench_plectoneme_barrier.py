@@ -27,8 +27,13 @@ torque, the node pairs in contact, Newton iterations, Coulomb's law at
 the converged state from the recorded contact forces
 (:func:`coulomb_excess`) and the true penetration of the centrelines
 (``ContactState.min_distance``: closest points of element pairs, both
-parameters free); per run the failed tries and the friction's fallbacks
-(``Result.log``).  Results: ``<out>.json`` and ``<out>.png`` (extension
+parameters free), the link (twist + writhe, after the solve); per run the
+failed tries and the friction's fallbacks (``Result.log``) and how far the
+link fell from the turns applied.  The ends carry handles (``handles=True``:
+rigid continuations along the axis, so that no strand passes around an
+end); ``--no-handles`` runs PyElastica's set-up as it is, where the
+plectoneme swings around an end at 8-9 turns and the link drops by 2 or 4.
+Results: ``<out>.json`` and ``<out>.png`` (extension
 and torque against turns beside the reference relations of
 ``bench_plectoneme.py``).
 """
@@ -46,10 +51,13 @@ import bench_plectoneme as bp  # noqa: E402
 
 
 def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, width=0.02,
-        force=1.0, verbose=True):
+        force=1.0, verbose=True, handles=True):
     """Twist the rod to ``turns`` in steps of ``step`` turns by
     ``rod.solve(method="barrier")``; returns a dict of figures and per-step
-    records (``force`` None: the solve's default barrier force)."""
+    records (``force`` None: the solve's default barrier force;
+    ``handles``: the ends continued by rigid handles, so that the link
+    stays the turns applied).  Each step's link (twist + writhe) is
+    computed after the solve, outside the timed run."""
     rod = bp.build(n_elements, gamma_T)
     end = rod.node("end")
     recs = []
@@ -71,16 +79,23 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                   f"M={rec['torque']:.4f}  pairs={rec['contacts']:4d}  "
                   f"its={rec['iterations']:3d}  penetration={rec['true_penetration']:+.2e} r  "
                   f"coulomb={rec['coulomb']:.1e}  {rec['wall']:.1f} s", flush=True)
-    options = dict(barrier_width=width, time_limit=budget)
+    options = dict(barrier_width=width, time_limit=budget, handles=handles)
     if force is not None:
         options["barrier_force"] = force
     result = rod.solve(int(round(turns / step)), path=[0, turns / bp.TURNS], callback=record,
                        method="barrier", **options)
+    wall = time.perf_counter() - t0
+    for k, q in enumerate(recs, start=1):
+        q["link"] = float(result.topology(k).link)
     last = result.steps[-1]
     its = np.array([q["iterations"] for q in recs])
     state = dict(r=last.r, R=last.R, order=np.argsort(rod.mesh.s_nodes))
     out = dict(n_elements=n_elements, gamma_T=gamma_T, turns=recs[-1]["turns"] if recs else 0.0,
-               wall=time.perf_counter() - t0, stop="" if result.converged else result.message,
+               wall=wall, stop="" if result.converged else result.message,
+               handles=handles,
+               # the largest departure of the link from the turns applied:
+               # 0 unless a strand passed around an end (no handles)
+               link_lost=max((abs(q["link"] - q["turns"]) for q in recs), default=0.0),
                records=recs, median_iterations=float(np.median(its)) if its.size else None,
                total_iterations=int(its.sum()),
                failed_tries=sum("cutting the step" in line for line in result.log),
@@ -90,7 +105,8 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                width=width, force=force, step=step)
     out["_state"] = state
     if verbose:
-        print(f"  -> {out['turns']:.3f} turns in {out['wall']:.1f} s, median "
+        print(f"  -> {out['turns']:.3f} turns (link {recs[-1]['link'] if recs else 0:.3f}) in "
+              f"{out['wall']:.1f} s, median "
               f"{out['median_iterations']} Newton iterations per step, "
               f"{out['failed_tries']} failed tries, {out['fallbacks']} fallbacks"
               + (f"; stopped: {out['stop']}" if out["stop"] else ""), flush=True)
@@ -133,10 +149,13 @@ def main(argv=None):
     ap.add_argument("--force", type=float, default=1.0,
                     help="a node pair's force at half the width (0: the solve's default)")
     ap.add_argument("--budget", type=float, default=300.0, help="wall-time budget per run (s)")
+    ap.add_argument("--no-handles", action="store_true",
+                    help="no handles at the ends: a strand may pass around an end, and the "
+                         "link drop below the turns applied")
     ap.add_argument("--out", default=str(HERE / "plectoneme_barrier"))
     a = ap.parse_args(argv)
-    runs = [run(n, g, a.turns, a.step, a.budget, a.width, a.force or None)
-            for n in a.elements for g in a.gammas]
+    runs = [run(n, g, a.turns, a.step, a.budget, a.width, a.force or None,
+                handles=not a.no_handles) for n in a.elements for g in a.gammas]
     out = Path(a.out)
     pngs = [render(q, f"{a.out}_{q['n_elements']}_{q['gamma_T']:g}.png") for q in runs]
     for q in runs:

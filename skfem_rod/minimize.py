@@ -193,18 +193,36 @@ class EnergySolve:
         if P.T is not None:
             raise ValueError("EnergySolve needs supports along the spatial axes")
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
+        # the handles point away from the rod along the end tangent d3
+        self.handle_sign = np.zeros(len(barrier.handles))
+        for h, k in enumerate(barrier.handles):
+            if self.s[k] not in (self.s.min(), self.s.max()):
+                raise ValueError(f"barrier: node {k} (s = {self.s[k]:g}) is no end of the rod; "
+                                 "handles continue its ends")
+            if np.isin(6 * k + np.arange(3, 6), self.free).any():
+                raise ValueError(f"barrier: the end at s = {self.s[k]:g} turns freely; a handle "
+                                 "needs the end's rotation held (clamp, fix_rotation or "
+                                 "prescribe_rotation)")
+            self.handle_sign[h] = 1.0 if self.s[k] == self.s.max() else -1.0
+
+    def _directions(self, R):
+        """The handles' directions at the rotations ``R`` (None: no handles)."""
+        if not self.barrier.handles:
+            return None
+        return self.handle_sign[:, None] * R[list(self.barrier.handles)][:, :, 2]
 
     # -- the energy ------------------------------------------------------
     def _parts(self, r, R, lam, lag, tangent, live=False):
         ev = self.P.evaluate(r, R, lam, tangent=tangent)
-        bw = barrier_work(r, self.s, self.barrier, hessian=tangent, dofs=6)
+        bw = barrier_work(r, self.s, self.barrier, hessian=tangent, dofs=6,
+                          directions=self._directions(R))
         fw = None
         if lag is not None:
             fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent) if live
                   else friction_work(r, R, lag, self.mu, self.eps_v, tangent))
         f = ev.external.reshape(-1, 6)
         E = ev.internal.energy - float(np.sum(f[:, :3] * (r - self.x0))) + bw.energy
-        G = ev.residual + np.pad(bw.gradient, ((0, 0), (0, 3))).ravel()
+        G = ev.residual + np.hstack([bw.gradient, bw.spin_gradient]).ravel()
         if fw is not None:
             # live: no potential; E stays the rest's (infinite on contact)
             E, G = (E if live else E + fw.energy), G + fw.gradient.ravel()
@@ -328,7 +346,7 @@ class EnergySolve:
         slope = float(g @ step[free])
         quad = curv * float(step[free] @ (d * step[free]))
         t = min(1.0, step_bound(r, step.reshape(-1, 6)[:, :3], self.s, self.barrier,
-                                o.fraction))
+                                o.fraction, self._directions(R)))
         for halving in range(CURVATURE_HALVINGS):
             if -(t * slope + 0.5 * t * t * quad) < CURVATURE_GAIN * newton_drop:
                 return None
@@ -420,7 +438,8 @@ class EnergySolve:
             d6 = dy.reshape(-1, 6)
             alpha = min(1.0,
                         o.max_spin / max(float(np.linalg.norm(d6[:, 3:], axis=1).max()), 1e-300),
-                        step_bound(r, d6[:, :3], self.s, self.barrier, o.fraction))
+                        step_bound(r, d6[:, :3], self.s, self.barrier, o.fraction,
+                                   self._directions(R)))
             for halving in range(LIVE_HALVINGS if live else o.halvings):
                 try:
                     rt, Rt = P.update(r, R, dy, alpha)
@@ -488,7 +507,8 @@ class EnergySolve:
         r1 = None
         if previous is not None:
             dy = ratio * P.increment(r, R, previous[0], previous[1])
-            a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction)
+            a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
+                           self._directions(R))
             try:
                 r1, R1 = P.update(r, R, dy, a)
                 if a < 1:
@@ -631,9 +651,13 @@ class BarrierStepper:
         bare.contact = None
         P = Problem(bare)
         force = default_force(P) if own.barrier_force is None else own.barrier_force
+        period = arclength_period(rod.mesh)
+        if own.handles and period is not None:
+            raise ValueError("handles=True: a closed rod has no ends to continue")
+        ends = (rod.node("start"), rod.node("end")) if own.handles else ()
         barrier = Barrier.for_nodes(rod.mesh.s_nodes, c.radius, width=own.barrier_width,
-                                    force=force, exclusion=c.exclusion,
-                                    period=arclength_period(rod.mesh))
+                                    force=force, exclusion=c.exclusion, period=period,
+                                    handles=ends)
         sampling = barrier.distance - 2 * c.radius       # a^2 / (8 eps): the nodes' offset
         if sampling > barrier.width:
             warnings.warn(

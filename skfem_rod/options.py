@@ -315,6 +315,9 @@ class BarrierOptions:
                                 lo=0.0)
     slip_smoothing: float = _pos(1e-3, "slip below which the friction force is smoothed "
                                        "(times the radius)")
+    handles: bool = _opt(False, "boolean", "continue both ends by rigid straight handles "
+                                           "along their tangents, so that no strand passes "
+                                           "around an end (the link of held ends is kept)")
 
     def __post_init__(self):
         for f in fields(self):

@@ -37,6 +37,19 @@ between nodes, the true distance can dip by the sag, at most
 touching strands stand; ``kappa`` is set so that a pair at ``g_hat / 2``
 pushes with ``force`` (``|b'(g_hat/2)| = (ln 2 + 1/2) kappa g_hat``).
 
+*Handles.*  A rod whose ends are held keeps its link (twist + writhe,
+closed far away along the end tangents) only while no strand passes
+around an end: crossing the straight continuation of the rod beyond an
+end changes the link by 2 without any strand touching another.  With
+``Barrier.handles`` the ends are continued by rigid straight handles of
+the rod's radius along the end tangents (the closure made material:
+:class:`Handles`, :func:`handle_pairs`); every node at least
+``exclusion`` from the end in arclength keeps the distance ``D`` from
+the handle (its cap the end node's sphere), with the same barrier, and
+the node pairs with the end node are the handle's.  The handles are
+frictionless and meant for ends whose rotation is held (their direction
+is data within a step).
+
 Everything is vectorized over pairs (``scipy.spatial.cKDTree.query_pairs``
 for the pairs within reach).
 """
@@ -60,6 +73,9 @@ class Barrier:
     stiffness: float     # kappa
     exclusion: float     # node pairs closer than this in arclength never touch
     period: object = None  # a closed rod's length (arclength is periodic), or None
+    #: end nodes continued by rigid straight handles (module doc); their
+    #: node pairs are the handles'
+    handles: tuple = ()
 
     def __post_init__(self):
         for name in ("distance", "width", "stiffness"):
@@ -69,16 +85,21 @@ class Barrier:
         if not (np.isfinite(self.exclusion) and self.exclusion >= 0):
             raise ValueError(f"Barrier exclusion must be a finite number >= 0, "
                              f"not {self.exclusion!r}")
+        if self.handles and self.period is not None:
+            raise ValueError("Barrier handles continue the ends of an open rod; a closed rod "
+                             "(period given) has none")
 
     @classmethod
-    def for_nodes(cls, s, radius, width=0.02, force=1.0, exclusion=None, period=None):
+    def for_nodes(cls, s, radius, width=0.02, force=1.0, exclusion=None, period=None,
+                  handles=()):
         """The barrier for nodes at arclengths ``s`` (any order) of a rod of
         contact radius ``radius``: ``D = 2 radius + a^2 / (8 radius)``
         with ``a`` the largest node spacing, ``g_hat = width radius``, the
         stiffness from ``force`` (module doc), ``exclusion`` default
         ``pi radius`` (:mod:`.search`); ``period``: a closed rod's length
         (:func:`.search.arclength_period`), the exclusion then wraps around
-        the closure."""
+        the closure; ``handles``: the end nodes continued by handles (an
+        open rod only)."""
         if not (np.isfinite(radius) and radius > 0):
             raise ValueError(f"radius must be a finite number > 0, not {radius!r}")
         if not (np.isfinite(width) and 0 < width):
@@ -91,7 +112,8 @@ class Barrier:
         return cls(distance=2 * radius + a ** 2 / (8 * radius), width=ghat,
                    stiffness=force / (HALF_WIDTH_FORCE * ghat),
                    exclusion=np.pi * radius if exclusion is None else float(exclusion),
-                   period=None if period is None else float(period))
+                   period=None if period is None else float(period),
+                   handles=tuple(int(k) for k in handles))
 
 
 def potential(g, width, stiffness):
@@ -117,6 +139,47 @@ def node_pairs(x, s, reach, exclusion, period=None):
     if period is not None:
         arc = np.minimum(arc, period - arc)
     return pr[arc >= exclusion]
+
+
+def _pairs(x, s, reach, barrier):
+    """:func:`node_pairs` of ``barrier`` within ``reach``, without the
+    pairs of its handles' nodes (the handles' own, :func:`handle_pairs`)."""
+    pr = node_pairs(x, s, reach, barrier.exclusion, barrier.period)
+    if barrier.handles and pr.shape[0]:
+        pr = pr[~np.isin(pr, barrier.handles).any(axis=1)]
+    return pr
+
+
+class Handles(NamedTuple):
+    """The nodes near the handles of a :class:`Barrier` at one
+    configuration (one row per node and handle): node ``i`` against the
+    half-line ``x_k + t e``, ``t >= 0``, of the handle at end node ``k``
+    (``e`` its unit direction, away from the rod)."""
+    pairs: np.ndarray         # (m, 2): node i, end node k
+    q: np.ndarray             # (m, 3): x_i - (the handle's nearest point)
+    along: np.ndarray         # (m,): t of the nearest point (0: the cap, the end node)
+    direction: np.ndarray     # (m, 3): the handle's e
+
+
+def handle_pairs(x, s, barrier, directions, reach):
+    """:class:`Handles`: the nodes within ``reach`` of the handles of
+    ``barrier`` (``directions`` ``(h, 3)``: each handle's unit direction,
+    in the order of ``barrier.handles``) and at least ``exclusion`` from
+    its end in arclength."""
+    rows = []
+    for k, e in zip(barrier.handles, np.asarray(directions, float).reshape(-1, 3)):
+        i = np.flatnonzero(np.abs(s - s[k]) >= barrier.exclusion)
+        u = x[i] - x[k]
+        t = np.maximum(u @ e, 0.0)
+        q = u - t[:, None] * e
+        near = np.einsum("ij,ij->i", q, q) < reach ** 2
+        m = int(near.sum())
+        rows.append((np.column_stack([i[near], np.full(m, k)]), q[near], t[near],
+                     np.broadcast_to(e, (m, 3))))
+    if not rows:
+        return Handles(np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros(0),
+                       np.zeros((0, 3)))
+    return Handles(*(np.concatenate(c) for c in zip(*rows)))
 
 
 class PairForces(NamedTuple):
@@ -149,40 +212,60 @@ class BarrierWork(NamedTuple):
     hessian: object           # sparse (n * dofs, n * dofs), or None
     active: int               # pairs with 0 < g < g_hat
     min_gap: float            # least gap g of the pairs in reach (inf: none)
+    #: (n, 3) dE/d(spin) per node: the handles' moments on their ends
+    #: (zero without handles)
+    spin_gradient: np.ndarray = None
 
 
-def barrier_work(x, s, barrier, hessian=True, dofs=3):
+def barrier_work(x, s, barrier, hessian=True, dofs=3, directions=None):
     """Energy, gradient and (``hessian``) exact Hessian of the barrier at
     node positions ``x`` (``(n, 3)``), arclengths ``s``: per pair the block
-    ``b'' n n^T + b'/|d| (I - n n^T)`` (the second part negative; Newton's
-    shift handles the indefinite tangent).  The Hessian is laid out with
-    ``dofs`` unknowns per node, the position first (6: a rod's positions
-    and spins)."""
+    ``b'' n n^T + b'/|d| (P - n n^T)`` (the second part negative; Newton's
+    shift handles the indefinite tangent; ``P`` the identity for node
+    pairs, the projection normal to the handle for a node against a
+    handle's side).  The Hessian is laid out with ``dofs`` unknowns per
+    node, the position first (6: a rod's positions and spins).  With
+    handles, ``directions`` are theirs (:func:`handle_pairs`); their
+    moments on the end sections are in ``spin_gradient`` (the Hessian has
+    no spin terms: the ends' rotations are held)."""
     x = np.asarray(x, float)
     n = x.shape[0]
     bw = barrier
-    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
-    grad = np.zeros((n, 3))
+    reach = bw.distance + bw.width
+    pr = _pairs(x, s, reach, bw)
+    d = x[pr[:, 0]] - x[pr[:, 1]]
+    along = np.zeros(pr.shape[0])
+    axis = np.zeros((pr.shape[0], 3))          # the handle's e (0: a node pair)
+    if bw.handles:
+        if directions is None:
+            raise ValueError("barrier_work: the barrier has handles; give their directions")
+        hp = handle_pairs(x, s, bw, directions, reach)
+        pr, d = np.concatenate([pr, hp.pairs]), np.concatenate([d, hp.q])
+        along, axis = np.concatenate([along, hp.along]), np.concatenate([axis, hp.direction])
+    grad, spin = np.zeros((n, 3)), np.zeros((n, 3))
     empty = sp.csc_matrix((n * dofs, n * dofs)) if hessian else None
     if pr.shape[0] == 0:
-        return BarrierWork(0.0, grad, empty, 0, np.inf)
-    d = x[pr[:, 0]] - x[pr[:, 1]]
+        return BarrierWork(0.0, grad, empty, 0, np.inf, spin)
     dist = np.linalg.norm(d, axis=1)
     g = dist - bw.distance
     gmin = float(g.min())
     if gmin <= 0:
-        return BarrierWork(np.inf, grad, empty, int(np.sum(g < bw.width)), gmin)
+        return BarrierWork(np.inf, grad, empty, int(np.sum(g < bw.width)), gmin, spin)
     act = g < bw.width
-    pr, d, dist, g = pr[act], d[act], dist[act], g[act]
+    pr, d, dist, g, along, axis = pr[act], d[act], dist[act], g[act], along[act], axis[act]
     b, b1, b2 = potential(g, bw.width, bw.stiffness)
     nv = d / dist[:, None]
     f = b1[:, None] * nv
     np.add.at(grad, pr[:, 0], f)
     np.add.at(grad, pr[:, 1], -f)
+    # a handle's point x_k + t e turns with its end: d/d(spin) (t e) x dE/dp
+    np.add.at(spin, pr[:, 1], cross(along[:, None] * axis, -f))
     H = None
     if hessian:
         nn = nv[:, :, None] * nv[:, None, :]
-        blk = b2[:, None, None] * nn + (b1 / dist)[:, None, None] * (np.eye(3) - nn)
+        proj = np.eye(3) - axis[:, :, None] * axis[:, None, :]      # on the side only
+        proj[along <= 0] = np.eye(3)
+        blk = b2[:, None, None] * nn + (b1 / dist)[:, None, None] * (proj - nn)
         I = pr[:, 0, None] * dofs + np.arange(3)
         J = pr[:, 1, None] * dofs + np.arange(3)
         v = blk.reshape(-1, 9)
@@ -191,34 +274,56 @@ def barrier_work(x, s, barrier, hessian=True, dofs=3):
         vals = [v.ravel(), v.ravel(), -v.ravel(), -v.ravel()]
         H = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(n * dofs, n * dofs)).tocsc()
-    return BarrierWork(float(b.sum()), grad, H, int(act.sum()), gmin)
+    return BarrierWork(float(b.sum()), grad, H, int(act.sum()), gmin, spin)
 
 
-def step_bound(x, dx, s, barrier, fraction=0.8):
-    """The largest ``alpha`` in ``(0, 1]`` such that moving the nodes along
-    ``x + t dx`` for ``t <= alpha / fraction`` keeps every node pair (at
-    least ``exclusion`` apart in arclength) farther apart than ``D``:
-    ``fraction`` times the first root of ``|d + t e|^2 = D^2`` over the
-    pairs that can reach it (continuous collision detection, exact for the
-    straight paths of the positions)."""
-    x, dx = np.asarray(x, float), np.asarray(dx, float)
-    bw = barrier
-    m = float(np.linalg.norm(dx, axis=1).max(initial=0.0))
-    pr = node_pairs(x, s, bw.distance + 2 * m, bw.exclusion, bw.period)    # within reach of D
-    if pr.shape[0] == 0:
-        return 1.0
-    d0 = x[pr[:, 0]] - x[pr[:, 1]]
-    e = dx[pr[:, 0]] - dx[pr[:, 1]]
-    A = np.einsum("ij,ij->i", e, e)
-    B = 2 * np.einsum("ij,ij->i", d0, e)
-    C = np.einsum("ij,ij->i", d0, d0) - bw.distance ** 2
+def _first_root(A, B, C):
+    """The first ``t >= 0`` with ``A t^2 + B t + C = 0`` where the
+    quadratic falls into it from ``C > 0`` (inf: none)."""
     disc = B ** 2 - 4 * A * C
     hit = (A > 0) & (disc >= 0) & (B < 0)
     t = np.full(A.shape, np.inf)
     # the smaller root, in the cancellation-free form 2C / (-B + sqrt(disc))
     t[hit] = 2 * C[hit] / (-B[hit] + np.sqrt(disc[hit]))
     t[t < 0] = np.inf
-    return float(min(1.0, fraction * t.min(initial=np.inf)))
+    return t
+
+
+def step_bound(x, dx, s, barrier, fraction=0.8, directions=None):
+    """The largest ``alpha`` in ``(0, 1]`` such that moving the nodes along
+    ``x + t dx`` for ``t <= alpha / fraction`` keeps every node pair (at
+    least ``exclusion`` apart in arclength) farther apart than ``D``:
+    ``fraction`` times the first root of ``|d + t e|^2 = D^2`` over the
+    pairs that can reach it (continuous collision detection, exact for the
+    straight paths of the positions).  With handles (``directions``), each
+    node also keeps ``D`` from each handle: its side (a cylinder, the
+    root counted where it lies beyond the end) and its cap (the end
+    node's sphere); exact for handles that do not turn within the step."""
+    x, dx = np.asarray(x, float), np.asarray(dx, float)
+    bw = barrier
+    m = float(np.linalg.norm(dx, axis=1).max(initial=0.0))
+    reach = bw.distance + 2 * m                        # within reach of D
+    pr = _pairs(x, s, reach, bw)
+    d0, e = x[pr[:, 0]] - x[pr[:, 1]], dx[pr[:, 0]] - dx[pr[:, 1]]
+    t = [_first_root(np.einsum("ij,ij->i", e, e), 2 * np.einsum("ij,ij->i", d0, e),
+                     np.einsum("ij,ij->i", d0, d0) - bw.distance ** 2)]
+    if bw.handles:
+        hp = handle_pairs(x, s, bw, directions, reach)
+        i, k, a = hp.pairs[:, 0], hp.pairs[:, 1], hp.direction
+        u, w = x[i] - x[k], dx[i] - dx[k]
+        t.append(_first_root(np.einsum("ij,ij->i", w, w), 2 * np.einsum("ij,ij->i", u, w),
+                             np.einsum("ij,ij->i", u, u) - bw.distance ** 2))     # the cap
+        pu = u - np.einsum("ij,ij->i", u, a)[:, None] * a
+        pw = w - np.einsum("ij,ij->i", w, a)[:, None] * a
+        side = _first_root(np.einsum("ij,ij->i", pw, pw), 2 * np.einsum("ij,ij->i", pu, pw),
+                           np.einsum("ij,ij->i", pu, pu) - bw.distance ** 2)
+        # the infinite cylinder's root counts where it lies beyond the end:
+        # before it, the path enters the half-cylinder through the cap
+        beyond = np.isfinite(side)
+        beyond[beyond] = np.einsum("ij,ij->i", u[beyond] + side[beyond, None] * w[beyond],
+                                   a[beyond]) >= 0
+        t.append(np.where(beyond, side, np.inf))
+    return float(min(1.0, fraction * min(float(v.min(initial=np.inf)) for v in t)))
 
 
 # -- friction ---------------------------------------------------------------
@@ -345,7 +450,7 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
     where the history starts, so the slip is their separation now, and a
     rigid motion (any rotation) moves them together: no slip."""
     bw = barrier
-    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
+    pr = _pairs(x, s, bw.distance + bw.width, bw)
     pf = pair_forces(x, pr, bw)
     keep = np.isfinite(pf.force) & (pf.force > 0)          # inside the barrier's width
     pr, n, lam = pr[keep], pf.normal[keep], pf.force[keep]
@@ -557,7 +662,7 @@ def node_contact(x, R, s, barrier, lag=None, mu=0.0, eps_v=None, live=True):
     (:func:`friction_live` where ``live``, else :func:`friction_work` at
     the lag's normal forces); pairs the lag does not have carry none."""
     bw = barrier
-    pr = node_pairs(x, s, bw.distance + bw.width, bw.exclusion, bw.period)
+    pr = _pairs(x, s, bw.distance + bw.width, bw)
     pf = pair_forces(x, pr, bw)
     on = pf.force > 0
     k = int(on.sum())
