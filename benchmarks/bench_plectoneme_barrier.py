@@ -86,7 +86,7 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                        method="barrier", **options)
     wall = time.perf_counter() - t0
     for k, q in enumerate(recs, start=1):
-        q["link"] = float(result.topology(k).link)
+        q["link"] = float(result.topology(k, per_element=4).link)
     last = result.steps[-1]
     its = np.array([q["iterations"] for q in recs])
     state = dict(r=last.r, R=last.R, order=np.argsort(rod.mesh.s_nodes))

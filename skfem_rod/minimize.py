@@ -72,9 +72,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work, friction_lag,
-                              friction_live, friction_work, lag_change, node_contact,
-                              step_bound)
+from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, barrier_work,
+                              bend_work, friction_lag, friction_live, friction_work, lag_change,
+                              node_contact, step_bound)
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .options import EnergyOptions
@@ -193,6 +193,16 @@ class EnergySolve:
         if P.T is not None:
             raise ValueError("EnergySolve needs supports along the spatial axes")
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
+        # no kink tighter than half the radius (barrier module doc, "Local
+        # self-contact")
+        self.bend = Bend.for_rod(self.s, self.radius, max(rod.section.EI1, rod.section.EI2),
+                                 closed=barrier.period is not None)
+        if not np.isfinite(bend_work(rod.r0, self.bend, hessian=False).energy):
+            raise ValueError(f"rod: its reference shape turns by more than "
+                             f"{self.bend.limit:.3g} rad at a node, a curvature above 2 / radius "
+                             f"= {2 / self.radius:.3g}: a loop tighter than half the contact "
+                             f"radius {self.radius:.3g}, which the node barrier forbids (its "
+                             "tube would pass through itself); give a smaller contact radius")
         # the handles point away from the rod along the end tangent d3
         self.handle_sign = np.zeros(len(barrier.handles))
         for h, k in enumerate(barrier.handles):
@@ -220,15 +230,19 @@ class EnergySolve:
         if lag is not None:
             fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent) if live
                   else friction_work(r, R, lag, self.mu, self.eps_v, tangent))
+        kw = bend_work(r, self.bend, hessian=tangent, dofs=6)
         f = ev.external.reshape(-1, 6)
-        E = ev.internal.energy - float(np.sum(f[:, :3] * (r - self.x0))) + bw.energy
-        G = ev.residual + np.hstack([bw.gradient, bw.spin_gradient]).ravel()
+        E = (ev.internal.energy - float(np.sum(f[:, :3] * (r - self.x0))) + bw.energy
+             + kw.energy)
+        G = ev.residual + np.hstack([bw.gradient + kw.gradient, bw.spin_gradient]).ravel()
         if fw is not None:
             # live: no potential; E stays the rest's (infinite on contact)
             E, G = (E if live else E + fw.energy), G + fw.gradient.ravel()
         K = None
         if tangent:
             K = ev.tangent + bw.hessian + (fw.hessian if fw is not None else 0)
+            if kw.hessian is not None:
+                K = K + kw.hessian
         return E, G, K, ev, bw
 
     def energy(self, r, R, lam, lag=None):

@@ -378,3 +378,68 @@ def test_crossing_strands_keep_their_distance_where_the_nodes_miss_the_crossing(
     assert dist.min() == pytest.approx(D, rel=1e-12)
     assert d == pytest.approx(2 * eps, rel=1e-3)
     assert d >= 2 * eps
+
+
+# -- the bend barrier (module doc, "Local self-contact") ----------------------
+def _bent_polyline(seed=3, n=12, turn=(0.45, 0.6)):
+    rng = np.random.default_rng(seed)
+    th = np.cumsum(rng.uniform(*turn, n))
+    x = 0.1 * np.column_stack([np.cumsum(np.cos(th)), np.cumsum(np.sin(th)),
+                               0.1 * rng.standard_normal(n)])
+    return x, np.linspace(0.0, 1.0, n), rng
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_bend_barrier_gradient_and_hessian_match_finite_differences(closed):
+    from skfem_rod.contact.barrier import Bend, bend_work
+    x, s, rng = _bent_polyline()
+    if closed:                 # a ring: 12 nodes on a perturbed circle, 0.52 rad a node
+        th = 2 * np.pi * np.arange(12) / 12
+        x = 0.1 * np.column_stack([np.cos(th), np.sin(th), 0 * th])
+        x += 0.003 * rng.standard_normal(x.shape)
+        s = th / (2 * np.pi)
+    bend = Bend(np.argsort(s), closed, limit=0.9 if closed else 0.75, width=0.3 if closed else 0.2,
+                stiffness=3.0)
+    w = bend_work(x, bend)
+    assert np.isfinite(w.energy) and w.active > 0
+    H = w.hessian.toarray()
+    assert np.allclose(H, H.T, atol=1e-10 * np.abs(H).max())
+    v = rng.standard_normal(x.shape)
+    h = 1e-6
+    ep, em = (bend_work(x + t * v, bend, hessian=False) for t in (h, -h))
+    slope = float(np.sum(w.gradient * v))
+    assert abs((ep.energy - em.energy) / (2 * h) - slope) <= 1e-6 * abs(slope)
+    Hv = H @ v.ravel()
+    fd = ((ep.gradient - em.gradient) / (2 * h)).ravel()
+    assert np.linalg.norm(fd - Hv) <= 1e-5 * np.linalg.norm(Hv)
+    # internal: no net force, no net moment
+    assert np.allclose(w.gradient.sum(axis=0), 0, atol=1e-10 * np.abs(w.gradient).max())
+    assert np.allclose(np.cross(x, w.gradient).sum(axis=0), 0,
+                       atol=1e-10 * np.abs(w.gradient).max())
+
+
+def test_bend_barrier_acts_only_beyond_its_onset_and_forbids_the_limit():
+    from skfem_rod.contact.barrier import Bend, bend_work
+    eps, EI, n = 0.025, 0.3, 61
+    s = np.linspace(0.0, 0.3, n)
+    bend = Bend.for_rod(s, eps, EI)
+    a = s[1] - s[0]
+    assert bend.limit == pytest.approx(2.0 * a / eps)
+
+    def arc(rho):              # nodes on a circle of radius rho, chord a
+        phi = 2 * np.arcsin(a / (2 * rho)) * np.arange(n)
+        return np.column_stack([rho * np.sin(phi), rho * (1 - np.cos(phi)), 0 * phi])
+    # a circle of radius 1/1.4 eps: inside the onset, nothing
+    w = bend_work(arc(eps / 1.4), bend)
+    assert w.energy == 0.0 and w.active == 0 and not np.any(w.gradient)
+    # of radius eps / 1.8: the barrier resists the bending (its moment
+    # tightening the circle is positive), of radius eps / 2.05 infinite
+    w = bend_work(arc(eps / 1.8), bend)
+    assert np.isfinite(w.energy) and w.energy > 0 and w.active == n - 2
+    assert bend_work(arc(eps / 2.05), bend).energy == np.inf
+    # at half the width a node resists with the moment EI * 2 / eps
+    phi = np.arccos(np.cos(bend.limit) + bend.width / 2)
+    from skfem_rod.contact.barrier import potential
+    _, b1, _ = potential(np.array([bend.width / 2]), bend.width, bend.stiffness)
+    assert -b1[0] * np.sin(phi) == pytest.approx(EI * 2.0 / eps * np.sin(phi)
+                                                  / np.sin(bend.limit))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from skfem_rod import Rod, Section, geometry
-from skfem_rod.minimize import EnergySolve, StepReport, default_force
+from skfem_rod.minimize import BarrierResolution, EnergySolve, StepReport, default_force
 
 from test_minimize import _hairpin, _steps
 
@@ -244,3 +244,27 @@ def test_a_mesh_too_coarse_for_the_barrier_is_warned_about():
     rod, eps, _ = _pressed(0.0)
     with pytest.warns(BarrierResolution, match="0.0451 of the radius.*below 0.02$"):
         rod.solve(1, method="barrier", barrier_force=1.0)
+
+
+def test_a_reference_bent_tighter_than_half_the_radius_is_refused():
+    """The bend barrier (barrier module doc, "Local self-contact") forbids
+    a curvature above 2 / radius: a reference with one is refused by name,
+    not solved from an infinite energy."""
+    # two straight legs, the second turned by 30 degrees over a bend of
+    # radius 0.004 at s = 0.1: a curvature of 2.5 / eps
+    rho, turn, eps = 0.004, np.pi / 6, 0.01
+
+    def r_of_s(s):
+        th = np.clip((s - 0.1) / rho, 0.0, turn)
+        beyond = np.clip(s - 0.1 - rho * turn, 0.0, None)
+        return np.c_[np.minimum(s, 0.1) + rho * np.sin(th) + beyond * np.cos(turn),
+                     rho * (1 - np.cos(th)) + beyond * np.sin(turn), 0 * s]
+    rod = Rod(geometry.curve(r_of_s, 0.2 + rho * turn), Section.circle(E=1e4, nu=0.3,
+                                                                      radius=0.005), 40)
+    rod.clamp("start").add_force("end", [0.0, 0.01, 0.0]).enable_contact(radius=eps)
+    with pytest.raises(ValueError, match="curvature above 2 / radius"):
+        rod.solve(1, method="barrier")
+    # with a contact radius of the bend's (a curvature of 1 / eps) it solves
+    rod.enable_contact(radius=rho)
+    with pytest.warns(BarrierResolution):
+        assert rod.solve(1, method="barrier").converged

@@ -14,7 +14,12 @@ nodes carries a smooth barrier energy on its distance, and each load step
 is Newton on the total energy (rod + barrier + the end's tension), with
 friction at the state's own normal forces (docs/contact-solve.md, "A
 smooth barrier between nodes").  No multipliers, no active set, no
-gradient flow.
+gradient flow.  Both ends carry handles (``handles=True``): the rod
+continues beyond them as rigid straight rods along the axis, as the
+surface and the bead of a magnetic-tweezers experiment hold a DNA
+molecule.  Without them the plectoneme, lying across both ends at this
+length and tension, swings around an end at 8-9 turns: no strand touches
+another, and the link drops by 2 at each swing.
 
 What to look for
 ----------------
@@ -24,7 +29,8 @@ What to look for
   and the torque levels off at its plateau (Neukirch & Marko, PRL 106,
   138104 (2011); both drawn beside the results).
 * Twist + writhe stays the turns applied (and the link of the closed-up
-  curve their rounding), so no strand passed through another; the true
+  curve their rounding), so no strand passed through another nor around
+  an end; the true
   least distance of the centrelines (closest points of element pairs,
   both parameters free) stays at least ``2 r (1 - 1e-3)`` at every step.
 * With friction, every pair's friction force is at most ``gamma_T`` times
@@ -110,7 +116,8 @@ def record(result, k, turns):
 
 def solve(n_elements=100, gamma_T=0.0, turns=10.0, steps_per_turn=16, log=None, **options):
     """Twist to ``turns`` in ``steps_per_turn`` steps per turn by
-    ``rod.solve(method="barrier")`` (``options``: more solve options);
+    ``rod.solve(method="barrier", handles=True)`` (``options``: more solve
+    options);
     returns the result, the rod, the per-step records and the wall time."""
     rod = build(n_elements, gamma_T, turns)
     records = []
@@ -120,6 +127,7 @@ def solve(n_elements=100, gamma_T=0.0, turns=10.0, steps_per_turn=16, log=None, 
         if log is not None:
             log(records[-1])
 
+    options.setdefault("handles", True)
     t0 = time.perf_counter()
     result = rod.solve(int(round(turns * steps_per_turn)), method="barrier", callback=callback,
                        **options)
