@@ -134,7 +134,8 @@ def render(run_out, path):
     o = st["order"]
     render_rod(path, st["r"][o], st["R"][o], bp.RADIUS, off_screen=True, camera=(0.3, -1, 0.5),
                title=f"{run_out['n_elements']} elements, gamma_T = {run_out['gamma_T']:g}: "
-                     f"{run_out['turns']:.3g} turns (node barrier, Newton on the energy)")
+                     f"{run_out['turns']:.3g} turns, link {run_out['records'][-1]['link']:.3g} "
+                     f"(node barrier)")
     return path
 
 
