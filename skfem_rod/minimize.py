@@ -9,9 +9,14 @@ step by :meth:`EnergySolve.step`).
 Where every load is dead (forces, no moments, no followers) and motions are
 prescribed, an equilibrium is a stationary point of
 
-    E(y) = U_rod(y) - f . (x - x_0) + sum over node pairs b(g_ij)  [+ D(y)]
+    E(y) = U_rod(y) - f . (x - x_0) + sum over node pairs b(g_ij)
+           [+ handles] + bend and shear barriers  [+ D(y)]
 
-(``D`` the friction's dissipation potential at lagged normal forces).
+(``D`` the friction's dissipation potential at lagged normal forces; the
+handles, with ``handles=True``, continue the held ends; the bend and
+shear barriers keep the node polyline from kinking within the
+exclusion and the sections from tilting off it: barrier module doc,
+"Handles" and "Local self-contact").
 One step, in plain sight::
 
     predictor: the last step's increment again (secant), cut by the step
@@ -72,9 +77,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, barrier_work,
+from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, Shear, barrier_work,
                               bend_work, friction_lag, friction_live, friction_work, lag_change,
-                              node_contact, step_bound)
+                              node_contact, shear_work, step_bound)
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .options import EnergyOptions
@@ -197,6 +202,13 @@ class EnergySolve:
         # self-contact")
         self.bend = Bend.for_rod(self.s, self.radius, max(rod.section.EI1, rod.section.EI2),
                                  closed=barrier.period is not None)
+        # ... nor a section tilted far off the centreline (a phase slip of the twist)
+        self.shear = Shear.for_rod(self.s, self.radius, max(rod.section.EI1, rod.section.EI2),
+                                   closed=barrier.period is not None)
+        if not np.isfinite(shear_work(rod.r0, rod.R0, self.shear, hessian=False).energy):
+            raise ValueError(f"rod: a section of its reference shape tilts by more than "
+                             f"{self.shear.limit:.3g} rad from the chords to its neighbours; "
+                             "the node barrier's solve forbids that (a finer mesh)")
         if not np.isfinite(bend_work(rod.r0, self.bend, hessian=False).energy):
             raise ValueError(f"rod: its reference shape turns by more than "
                              f"{self.bend.limit:.3g} rad at a node, a curvature above 2 / radius "
@@ -231,18 +243,21 @@ class EnergySolve:
             fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent) if live
                   else friction_work(r, R, lag, self.mu, self.eps_v, tangent))
         kw = bend_work(r, self.bend, hessian=tangent, dofs=6)
+        sw = shear_work(r, R, self.shear, hessian=tangent)
         f = ev.external.reshape(-1, 6)
         E = (ev.internal.energy - float(np.sum(f[:, :3] * (r - self.x0))) + bw.energy
-             + kw.energy)
-        G = ev.residual + np.hstack([bw.gradient + kw.gradient, bw.spin_gradient]).ravel()
+             + kw.energy + sw.energy)
+        G = (ev.residual + np.hstack([bw.gradient + kw.gradient, bw.spin_gradient]).ravel()
+             + sw.gradient.ravel())
         if fw is not None:
             # live: no potential; E stays the rest's (infinite on contact)
             E, G = (E if live else E + fw.energy), G + fw.gradient.ravel()
         K = None
         if tangent:
             K = ev.tangent + bw.hessian + (fw.hessian if fw is not None else 0)
-            if kw.hessian is not None:
-                K = K + kw.hessian
+            for local in (kw, sw):
+                if local.hessian is not None:
+                    K = K + local.hessian
         return E, G, K, ev, bw
 
     def energy(self, r, R, lam, lag=None):

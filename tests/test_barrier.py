@@ -443,3 +443,62 @@ def test_bend_barrier_acts_only_beyond_its_onset_and_forbids_the_limit():
     _, b1, _ = potential(np.array([bend.width / 2]), bend.width, bend.stiffness)
     assert -b1[0] * np.sin(phi) == pytest.approx(EI * 2.0 / eps * np.sin(phi)
                                                   / np.sin(bend.limit))
+
+
+def _tilted_frames(x, rng, tilt=(0.3, 0.5)):
+    """Frames whose d3 is turned off the centreline's local direction by
+    ``tilt`` radians."""
+    n = x.shape[0]
+    R = np.empty((n, 3, 3))
+    for k in range(n):
+        t = x[min(k + 1, n - 1)] - x[max(k - 1, 0)]
+        t /= np.linalg.norm(t)
+        a = np.cross(t, [0, 0, 1.0])
+        a /= np.linalg.norm(a)
+        d3 = Rotation.from_rotvec(rng.uniform(*tilt) * a).as_matrix() @ t
+        d1 = np.cross([0, 1.0, 0], d3)
+        d1 /= np.linalg.norm(d1)
+        R[k] = np.column_stack([d1, np.cross(d3, d1), d3])
+    return R
+
+
+def test_shear_barrier_gradient_and_tangent_match_finite_differences():
+    """In positions and spatial spins (R <- exp(w) R): the tangent is the
+    derivative of the gradient along the update, position and spin rows
+    and columns each."""
+    from skfem_rod.contact.barrier import Shear, shear_work
+    rng = np.random.default_rng(4)
+    s = np.linspace(0, 1, 10)
+    x = np.column_stack([s, 0.05 * np.sin(3 * s), 0.02 * np.cos(2 * s)])
+    R = _tilted_frames(x, rng)
+    shear = Shear(np.argsort(s), False, limit=0.7, width=0.3, stiffness=2.0)
+    w = shear_work(x, R, shear)
+    assert np.isfinite(w.energy) and w.active > 10
+    v = rng.standard_normal((10, 6))
+    h = 1e-6
+
+    def moved(t, u):
+        turn = Rotation.from_rotvec(t * u[:, 3:]).as_matrix()
+        return x + t * u[:, :3], np.einsum("kab,kbc->kac", turn, R)
+    ep, em = (shear_work(*moved(t, v), shear, hessian=False) for t in (h, -h))
+    slope = float(np.sum(w.gradient * v))
+    assert abs((ep.energy - em.energy) / (2 * h) - slope) <= 1e-6 * abs(slope)
+    for part in (np.r_[1, 1, 1, 0, 0, 0], np.r_[0, 0, 0, 1, 1, 1]):
+        u = v * part
+        gp, gm = (shear_work(*moved(t, u), shear, hessian=False).gradient for t in (h, -h))
+        Hv = w.hessian @ u.ravel()
+        assert np.linalg.norm((gp - gm).ravel() / (2 * h) - Hv) <= 1e-6 * np.linalg.norm(Hv)
+
+
+def test_shear_barrier_is_off_for_sections_along_the_centreline_and_forbids_the_limit():
+    from skfem_rod.contact.barrier import Shear, shear_work
+    rng = np.random.default_rng(5)
+    s = np.linspace(0, 1, 21)
+    x = np.column_stack([s, 0.1 * np.sin(2 * s), 0 * s])
+    shear = Shear.for_rod(s, 0.05, 1.0)
+    assert shear.limit == pytest.approx(0.05 / 0.05 + 0.5)
+    # sections along the centreline (the reference's): nothing
+    assert shear_work(x, _tilted_frames(x, rng, (0.0, 1e-9)), shear).energy == 0.0
+    # tilted into the barrier: a finite energy; beyond the limit: infinite
+    assert 0 < shear_work(x, _tilted_frames(x, rng, (1.35, 1.4)), shear).energy < np.inf
+    assert shear_work(x, _tilted_frames(x, rng, (1.6, 1.7)), shear).energy == np.inf

@@ -64,7 +64,13 @@ turning by more than ``limit`` at any node, with the same barrier on
 :func:`bend_work`.  The solve sets the limit to a curvature of ``2 /
 eps`` (a loop of half the radius) and the barrier to act only beyond
 ``1.5 / eps``; the plectoneme's converged states bend to at most ``1.3 /
-eps``.
+eps``.  Likewise the sections: where ``d3`` tilts far off the
+centreline (a shear the linear law lets through at a high torque), the
+twist about the centreline is undefined and can come out a turn less --
+a phase slip, measured in the same run.  :class:`Shear` keeps the angle
+between each section's ``d3`` and the chords to its neighbours below
+``a / eps + 0.5`` rad (the chord's own turn from the tangent plus half a
+radian; acting beyond ``a / eps + 0.3``): :func:`shear_work`.
 
 Everything is vectorized over pairs (``scipy.spatial.cKDTree.query_pairs``
 for the pairs within reach).
@@ -227,12 +233,12 @@ class Bend(NamedTuple):
         return cls(order, bool(closed), limit, width, stiffness)
 
 
-class BendWork(NamedTuple):
-    """The bend barrier at one configuration."""
-    energy: float             # inf where a node turns by the limit or more
-    gradient: np.ndarray      # (n, 3) dE/dx per node
+class LocalWork(NamedTuple):
+    """The bend or the shear barrier at one configuration."""
+    energy: float             # inf where a node turns (a section tilts) by the limit or more
+    gradient: np.ndarray      # per node: (n, 3) dE/dx (bend), (n, 6) dE/dx, dE/dw (shear)
     hessian: object           # sparse (n * dofs, n * dofs); None if not asked or none active
-    active: int               # nodes with 0 < g < width
+    active: int               # terms with 0 < g < width
 
 
 #: d(e_0, e_1) / d(x_a, x_b, x_c): e_0 = x_b - x_a, e_1 = x_c - x_b
@@ -258,10 +264,10 @@ def bend_work(x, bend, hessian=True, dofs=3):
     f = np.einsum("ij,ij->i", t0, t1)
     g = f - np.cos(bend.limit)
     if np.any(g <= 0):
-        return BendWork(np.inf, grad, None, int(np.sum(g < bend.width)))
+        return LocalWork(np.inf, grad, None, int(np.sum(g < bend.width)))
     act = g < bend.width
     if not act.any():                  # (no empty Hessian to add: a sparse sum copies)
-        return BendWork(0.0, grad, None, 0)
+        return LocalWork(0.0, grad, None, 0)
     idx, t0, t1, n0, n1, f, g = idx[act], t0[act], t1[act], n0[act], n1[act], f[act], g[act]
     b, b1, b2 = potential(g, bend.width, bend.stiffness)
     g0 = (t1 - f[:, None] * t0) / n0[:, None]             # df/de_0
@@ -287,7 +293,95 @@ def bend_work(x, bend, hessian=True, dofs=3):
         rows = np.repeat(dof, 9, axis=1).ravel()
         cols = np.tile(dof, (1, 9)).ravel()
         H = sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(n * dofs, n * dofs)).tocsc()
-    return BendWork(float(b.sum()), grad, H, int(act.sum()))
+    return LocalWork(float(b.sum()), grad, H, int(act.sum()))
+
+
+class Shear(NamedTuple):
+    """The barrier on the angle between each section's ``d3`` and the
+    chords to its neighbours (module doc, "Local self-contact"): ``g = d3 .
+    c - cos(limit)`` (``c`` the unit chord), acting for ``0 < g < width``."""
+    order: np.ndarray         # (n,) the nodes in arclength order
+    closed: bool              # a ring: the first and last nodes are neighbours
+    limit: float              # the largest angle between d3 and a chord (rad)
+    width: float              # the barrier acts for 0 < g < width
+    stiffness: float          # kappa
+
+    @classmethod
+    def for_rod(cls, s, radius, bending, angle=0.5, onset=0.3, closed=False):
+        """For nodes at arclengths ``s`` of a rod of radius ``radius`` and
+        bending stiffness ``bending``: the limit ``a / radius + angle``
+        (``a`` the largest node spacing: a chord turns from the tangent by
+        up to ``a / radius`` where the bend barrier allows a curvature of
+        ``2 / radius``), at most 2 rad, the barrier acting beyond ``a /
+        radius + onset``; ``kappa`` makes a section at half the width
+        resist with the moment ``2 bending / radius``."""
+        s = np.asarray(s, float)
+        order = np.argsort(s)
+        a = float(np.diff(s[order]).max(initial=0.0))
+        limit = min(a / radius + angle, 2.0)
+        width = float(np.cos(limit - (angle - onset)) - np.cos(limit))
+        stiffness = 2 * bending / radius / (HALF_WIDTH_FORCE * width * np.sin(limit))
+        return cls(order, bool(closed), limit, width, stiffness)
+
+
+def shear_work(x, R, shear, hessian=True):
+    """Energy, gradient and (``hessian``) tangent of the shear barrier
+    :class:`Shear` at nodes ``(x, R)``, over the 6 dofs per node
+    (positions; spatial spins, ``R <- exp(w) R``).  Per chord ``e = x_j -
+    x_i`` and each of its two sections ``p``: ``f = d3_p . c``; ``df/de =
+    P_c d3 / |e|``, ``df/dw_p = d3 x c``; the tangent is the derivative
+    of that gradient (the spins' block ``d3 c^T - f I`` as the spin turns
+    ``d3``, not symmetric, as :func:`friction_work`'s)."""
+    x = np.asarray(x, float)
+    n = x.shape[0]
+    o = shear.order
+    i, j = (o, np.roll(o, -1)) if shear.closed else (o[:-1], o[1:])
+    e = x[j] - x[i]
+    ne = np.linalg.norm(e, axis=1)
+    c = e / ne[:, None]
+    # each chord twice: with its first node's section, then its second's
+    i, j, c, ne = (np.concatenate([v, v]) for v in (i, j, c, ne))
+    p = np.concatenate([o[:-1], o[1:]] if not shear.closed else [o, np.roll(o, -1)])
+    d3 = R[p][:, :, 2]
+    f = np.einsum("ij,ij->i", d3, c)
+    g = f - np.cos(shear.limit)
+    grad = np.zeros((n, 6))
+    if np.any(g <= 0):
+        return LocalWork(np.inf, grad, None, int(np.sum(g < shear.width)))
+    act = g < shear.width
+    if not act.any():
+        return LocalWork(0.0, grad, None, 0)
+    i, j, p, c, ne, d3, f, g = (v[act] for v in (i, j, p, c, ne, d3, f, g))
+    b, b1, b2 = potential(g, shear.width, shear.stiffness)
+    ge = (d3 - f[:, None] * c) / ne[:, None]               # df/de
+    gw = cross(d3, c)                                      # df/dw_p
+    np.add.at(grad[:, :3], i, -b1[:, None] * ge)
+    np.add.at(grad[:, :3], j, b1[:, None] * ge)
+    np.add.at(grad[:, 3:], p, b1[:, None] * gw)
+    H = None
+    if hessian:
+        k = f.size
+        eye = np.eye(3)
+        Pc = eye - c[:, :, None] * c[:, None, :]
+        Hee = (-(c[:, :, None] * ge[:, None, :] + ge[:, :, None] * c[:, None, :])
+               / ne[:, None, None] - f[:, None, None] * Pc / (ne ** 2)[:, None, None])
+        Hew = -np.einsum("kab,kbc->kac", Pc, hat(d3)) / ne[:, None, None]   # d(ge)/dw
+        Hww = d3[:, :, None] * c[:, None, :] - f[:, None, None] * eye      # d(gw)/dw
+        # the local dofs (x_i, x_j, w_p); e = x_j - x_i
+        df = np.hstack([-ge, ge, gw])
+        D = np.zeros((k, 9, 9))
+        D[:, :3, :3], D[:, 3:6, 3:6] = Hee, Hee
+        D[:, :3, 3:6], D[:, 3:6, :3] = -Hee, -Hee
+        D[:, :3, 6:], D[:, 3:6, 6:] = -Hew, Hew
+        D[:, 6:, :3], D[:, 6:, 3:6] = -Hew.transpose(0, 2, 1), Hew.transpose(0, 2, 1)
+        D[:, 6:, 6:] = Hww
+        blk = b2[:, None, None] * df[:, :, None] * df[:, None, :] + b1[:, None, None] * D
+        dof = np.concatenate([i[:, None] * 6 + np.arange(3), j[:, None] * 6 + np.arange(3),
+                              p[:, None] * 6 + 3 + np.arange(3)], axis=1)
+        rows = np.repeat(dof, 9, axis=1).ravel()
+        cols = np.tile(dof, (1, 9)).ravel()
+        H = sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(6 * n, 6 * n)).tocsc()
+    return LocalWork(float(b.sum()), grad, H, int(act.sum()))
 
 
 class PairForces(NamedTuple):
