@@ -1,10 +1,11 @@
 """Save two consecutive converged states of the barrier plectoneme (the
-set-up of ``bench_plectoneme_barrier.py``, no handles, frictionless, steps
-of 1/16 turn) for a test to take the next step from.
+set-up of ``bench_plectoneme_barrier.py``, steps of 1/16 turn; by default
+frictionless and without handles) for a test to take the next step from.
 
 Usage::
 
     python benchmarks/plectoneme_state.py 100 138 tests/data/plectoneme_swing.npz
+    python benchmarks/plectoneme_state.py 100 122 tests/data/plectoneme_slip.npz 0.3 handles
 
 writes ``lam0, r0, R0`` (step ``k - 1``) and ``lam1, r1, R1`` (step ``k``)
 of the ``n``-element rod; ``tests/test_handles.py`` takes step ``k + 1``
@@ -23,9 +24,9 @@ class _Stop(Exception):
     pass
 
 
-def states(n_elements, k):
+def states(n_elements, k, gamma_T=0.0, handles=False):
     """``((lam, r, R) of step k - 1, of step k)``."""
-    rod = bp.build(n_elements, 0.0)
+    rod = bp.build(n_elements, gamma_T)
     kept = {}
 
     def keep(result, j):
@@ -35,15 +36,17 @@ def states(n_elements, k):
             raise _Stop
     try:
         rod.solve(160, path=[0, 1.0], method="barrier", barrier_width=0.02, barrier_force=1.0,
-                  callback=keep)
+                  callback=keep, handles=handles)
     except _Stop:
         pass
     return kept[k - 1], kept[k]
 
 
 def main(argv=None):
-    n, k, path = (argv or sys.argv[1:])[:3]
-    (lam0, r0, R0), (lam1, r1, R1) = states(int(n), int(k))
+    args = argv or sys.argv[1:]
+    n, k, path = args[:3]
+    gamma_T = float(args[3]) if len(args) > 3 else 0.0
+    (lam0, r0, R0), (lam1, r1, R1) = states(int(n), int(k), gamma_T, "handles" in args[4:])
     tmp = Path(path).with_suffix(".tmp.npz")
     np.savez_compressed(tmp, lam0=lam0, r0=r0, R0=R0, lam1=lam1, r1=r1, R1=R1)
     tmp.replace(path)

@@ -190,3 +190,48 @@ def test_handles_keep_the_link_where_the_plectoneme_swings_around_an_end(handles
         # 6 with the shear barrier)
         lost = turns - link
         assert lost >= 2 - 1e-6 and lost == pytest.approx(2 * round(lost / 2), abs=1e-6)
+
+
+@pytest.mark.slow
+def test_the_shear_barrier_keeps_the_twist_from_slipping_in_the_frictional_plectoneme():
+    """The 100-element frictional barrier plectoneme (gamma_T = 0.3,
+    handles) at 7.656 turns, saved by ``benchmarks/plectoneme_state.py 100
+    123 ... 0.3 handles`` on the code before the shear barrier (50354c9):
+    its next step, taken without the shear barrier, turned sections 119
+    degrees off the centreline near the clamp and lost a turn of twist
+    twice (the link by 2); with it the step converges, the link kept."""
+    from pathlib import Path
+
+    from helpers import load_bench
+    from skfem_rod.minimize import BarrierStepper
+    from skfem_rod.options import split_barrier_options
+
+    bp = load_bench("bench_plectoneme")
+    d = np.load(Path(__file__).with_name("data") / "plectoneme_slip.npz")
+    rod = bp.build(100, 0.3)
+    stepper = BarrierStepper(rod, *split_barrier_options(dict(barrier_force=1.0, handles=True)))
+    lam1 = float(d["lam1"])
+    assert _link(rod, d["r1"], d["R1"]) == pytest.approx(lam1 * bp.TURNS, abs=1e-6)
+    # the step the path takes next: 1/160, twice the last (a cut step);
+    # the secant scaled to it
+    dlam = 1 / 160
+    ratio = dlam / (lam1 - float(d["lam0"]))
+    r, R, rep = stepper.solve.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]), 0.0, ratio)
+    assert rep.converged, rep.reason
+    assert _link(rod, r, R) == pytest.approx((lam1 + dlam) * bp.TURNS, abs=1e-6)
+    # no section tilted off the chords to its neighbours beyond the limit
+    o = np.argsort(rod.mesh.s_nodes)
+    c = np.diff(r[o], axis=0)
+    c /= np.linalg.norm(c, axis=1)[:, None]
+    d3 = R[o][:, :, 2]
+    tilt = np.arccos(np.clip(np.r_[np.einsum("ij,ij->i", d3[:-1], c),
+                                   np.einsum("ij,ij->i", d3[1:], c)], -1, 1))
+    assert tilt.max() < stepper.solve.shear.limit
+
+
+def _link(rod, r, R):
+    """Twist + writhe of the nodes' ribbon, closed along the end tangents."""
+    from skfem_rod.topology import topology
+    o = np.argsort(rod.mesh.s_nodes)
+    t = topology(r[o], R[o][:, :, 0], t_start=R[o][0][:, 2], t_end=R[o][-1][:, 2])
+    return t.twist - t.closure_twist + t.writhe
