@@ -148,6 +148,8 @@ def test_handles_belong_to_open_rods():
     x, s, ends, e = _rod()
     with pytest.raises(ValueError, match="directions"):
         barrier_work(x, s, _barrier())
+    with pytest.raises(ValueError, match="directions"):
+        step_bound(x, np.zeros_like(x), s, _barrier())
 
 
 

@@ -510,6 +510,8 @@ def step_bound(x, dx, s, barrier, fraction=0.8, directions=None):
     t = [_first_root(np.einsum("ij,ij->i", e, e), 2 * np.einsum("ij,ij->i", d0, e),
                      np.einsum("ij,ij->i", d0, d0) - bw.distance ** 2)]
     if bw.handles:
+        if directions is None:
+            raise ValueError("step_bound: the barrier has handles; give their directions")
         hp = handle_pairs(x, s, bw, directions, reach)
         i, k, a = hp.pairs[:, 0], hp.pairs[:, 1], hp.direction
         u, w = x[i] - x[k], dx[i] - dx[k]
