@@ -219,9 +219,9 @@ class Bend(NamedTuple):
         """For nodes at arclengths ``s`` of a rod of radius ``radius``
         and bending stiffness ``bending``: the limit angle ``curvature /
         radius`` times the largest node spacing (at most 2.5 rad), the
-        barrier acting beyond ``onset / radius``; ``kappa`` makes a node
-        at half the width resist with the moment ``bending * curvature /
-        radius``."""
+        barrier acting beyond ``onset / radius``; ``kappa`` such that
+        ``|b'(width / 2)| sin(limit) = bending * curvature / radius``: a
+        node at half the width resists with about that moment."""
         s = np.asarray(s, float)
         order = np.argsort(s)
         a = float(np.diff(s[order]).max(initial=0.0))
@@ -313,8 +313,9 @@ class Shear(NamedTuple):
         (``a`` the largest node spacing: a chord turns from the tangent by
         up to ``a / radius`` where the bend barrier allows a curvature of
         ``2 / radius``), at most 2 rad, the barrier acting beyond ``a /
-        radius + onset``; ``kappa`` makes a section at half the width
-        resist with the moment ``2 bending / radius``."""
+        radius + onset``; ``kappa`` such that ``|b'(width / 2)|
+        sin(limit) = 2 bending / radius``: a section at half the width
+        resists with about that moment."""
         s = np.asarray(s, float)
         order = np.argsort(s)
         a = float(np.diff(s[order]).max(initial=0.0))
