@@ -149,6 +149,21 @@ def potential(g, width, stiffness):
     return b, b1, b2
 
 
+def _blocks(blk, dof, size):
+    """The sparse ``size x size`` matrix of the dense blocks ``blk`` (``(k,
+    m, m)``) at the global dofs ``dof`` (``(k, m)``), duplicates summed."""
+    m = dof.shape[1]
+    rows = np.repeat(dof, m, axis=1).ravel()
+    cols = np.tile(dof, (1, m)).ravel()
+    return sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(size, size)).tocsc()
+
+
+def _pair_block(M):
+    """``[[M, -M], [-M, M]]`` per pair: a term in ``x_i - x_j`` over
+    ``(x_i, x_j)``."""
+    return np.concatenate([np.concatenate([M, -M], 2), np.concatenate([-M, M], 2)], 1)
+
+
 def node_pairs(x, s, reach, exclusion, period=None):
     """Pairs ``(k, 2)`` of nodes (positions ``x``, arclengths ``s``) closer
     than ``reach`` in space and at least ``exclusion`` apart in arclength
@@ -289,10 +304,7 @@ def bend_work(x, bend, hessian=True, dofs=3):
         He[:, :3, 3:], He[:, 3:, :3] = H01, H01.transpose(0, 2, 1)
         Hx = np.einsum("ai,kab,bj->kij", _CHORDS, He, _CHORDS)     # (k, 9, 9)
         blk = b2[:, None, None] * df[:, :, None] * df[:, None, :] + b1[:, None, None] * Hx
-        dof = (idx[:, :, None] * dofs + np.arange(3)).reshape(-1, 9)
-        rows = np.repeat(dof, 9, axis=1).ravel()
-        cols = np.tile(dof, (1, 9)).ravel()
-        H = sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(n * dofs, n * dofs)).tocsc()
+        H = _blocks(blk, (idx[:, :, None] * dofs + np.arange(3)).reshape(-1, 9), n * dofs)
     return LocalWork(float(b.sum()), grad, H, int(act.sum()))
 
 
@@ -371,17 +383,14 @@ def shear_work(x, R, shear, hessian=True):
         # the local dofs (x_i, x_j, w_p); e = x_j - x_i
         df = np.hstack([-ge, ge, gw])
         D = np.zeros((k, 9, 9))
-        D[:, :3, :3], D[:, 3:6, 3:6] = Hee, Hee
-        D[:, :3, 3:6], D[:, 3:6, :3] = -Hee, -Hee
+        D[:, :6, :6] = _pair_block(Hee)                    # e = x_j - x_i
         D[:, :3, 6:], D[:, 3:6, 6:] = -Hew, Hew
         D[:, 6:, :3], D[:, 6:, 3:6] = -Hew.transpose(0, 2, 1), Hew.transpose(0, 2, 1)
         D[:, 6:, 6:] = Hww
         blk = b2[:, None, None] * df[:, :, None] * df[:, None, :] + b1[:, None, None] * D
         dof = np.concatenate([i[:, None] * 6 + np.arange(3), j[:, None] * 6 + np.arange(3),
                               p[:, None] * 6 + 3 + np.arange(3)], axis=1)
-        rows = np.repeat(dof, 9, axis=1).ravel()
-        cols = np.tile(dof, (1, 9)).ravel()
-        H = sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(6 * n, 6 * n)).tocsc()
+        H = _blocks(blk, dof, 6 * n)
     return LocalWork(float(b.sum()), grad, H, int(act.sum()))
 
 
@@ -469,14 +478,9 @@ def barrier_work(x, s, barrier, hessian=True, dofs=3, directions=None):
         proj = np.eye(3) - axis[:, :, None] * axis[:, None, :]      # on the side only
         proj[along <= 0] = np.eye(3)
         blk = b2[:, None, None] * nn + (b1 / dist)[:, None, None] * (proj - nn)
-        I = pr[:, 0, None] * dofs + np.arange(3)
-        J = pr[:, 1, None] * dofs + np.arange(3)
-        v = blk.reshape(-1, 9)
-        rows = [np.repeat(A, 3, axis=1).ravel() for A in (I, J, I, J)]
-        cols = [np.tile(B, (1, 3)).ravel() for B in (I, J, J, I)]
-        vals = [v.ravel(), v.ravel(), -v.ravel(), -v.ravel()]
-        H = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                          shape=(n * dofs, n * dofs)).tocsc()
+        dof = np.concatenate([pr[:, 0, None] * dofs + np.arange(3),
+                              pr[:, 1, None] * dofs + np.arange(3)], axis=1)
+        H = _blocks(_pair_block(blk), dof, n * dofs)
     return BarrierWork(float(b.sum()), grad, H, int(act.sum()), gmin, spin)
 
 
@@ -742,9 +746,7 @@ def _arms_turn(blk, c_i, c_j, phi):
 def _assemble(blk, i, j, n_nodes):
     """The sparse matrix of 12 x 12 pair blocks ``blk``."""
     dof = np.concatenate([i[:, None] * 6 + np.arange(6), j[:, None] * 6 + np.arange(6)], 1)
-    rows = np.repeat(dof, 12, axis=1).ravel()
-    cols = np.tile(dof, (1, 12)).ravel()
-    return sp.coo_matrix((blk.ravel(), (rows, cols)), shape=(6 * n_nodes, 6 * n_nodes)).tocsc()
+    return _blocks(blk, dof, 6 * n_nodes)
 
 
 def friction_work(x, R, lag, mu, eps_v, hessian=True):
