@@ -77,12 +77,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, Shear, barrier_work,
-                              bend_work, friction_lag, friction_live, friction_work, lag_change,
-                              node_contact, shear_work, step_bound)
+from .contact.barrier import (Barrier, Bend, FrictionLag, NearPairs, Relaxation, Shear,
+                              barrier_work, bend_work, friction_lag, friction_live,
+                              friction_work, lag_change, node_contact, shear_work, step_bound)
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .options import EnergyOptions
+from .ordering import KeptOrdering, Ordered
 from .problem import Problem
 
 __all__ = ["BarrierResolution", "EnergyOptions", "EnergySolve", "StepReport", "solve_barrier"]
@@ -108,6 +109,10 @@ CURVATURE_HALVINGS = 4
 #: the live tangent's LU keeps a diagonal pivot unless it is below this
 #: share of its column's largest entry (SuperLU's diag_pivot_thresh)
 LIVE_PIVOT = 0.01
+#: the barrier's pair list (:class:`~skfem_rod.contact.barrier.NearPairs`)
+#: holds the pairs within its reach plus this many radii: kept while no
+#: node moved by half of that
+NEAR_SKIN = 0.5
 
 
 def backward_error(A, x, b):
@@ -119,9 +124,11 @@ def backward_error(A, x, b):
 
 class Factor(NamedTuple):
     """The energy Newton's factorization of its shifted tangent on the free
-    dofs: the LU, the unshifted tangent and ``D = diag|K|``."""
+    dofs: the LU, the unshifted free block (an
+    :class:`~skfem_rod.ordering.Ordered`, in the LU's order) and ``D =
+    diag|K|`` in that order."""
     lu: object
-    K: object
+    block: Ordered
     d: np.ndarray
 
 
@@ -198,6 +205,10 @@ class EnergySolve:
         if P.T is not None:
             raise ValueError("EnergySolve needs supports along the spatial axes")
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
+        self.ordering = KeptOrdering(self.free)    # the factorizations' ordering
+        # the barrier's pairs from a list kept while the nodes move less
+        # than a quarter of the radius (NEAR_SKIN)
+        self.near = NearPairs(NEAR_SKIN * self.radius)
         # no kink tighter than half the radius (barrier module doc, "Local
         # self-contact")
         self.bend = Bend.for_rod(self.s, self.radius, max(rod.section.EI1, rod.section.EI2),
@@ -221,7 +232,7 @@ class EnergySolve:
             if self.s[k] not in (self.s.min(), self.s.max()):
                 raise ValueError(f"barrier: node {k} (s = {self.s[k]:g}) is no end of the rod; "
                                  "handles continue its ends")
-            if np.isin(6 * k + np.arange(3, 6), self.free).any():
+            if self.free[6 * k + 3:6 * k + 6].any():
                 raise ValueError(f"barrier: the end at s = {self.s[k]:g} turns freely; a handle "
                                  "needs the end's rotation held (clamp, fix_rotation or "
                                  "prescribe_rotation)")
@@ -237,7 +248,7 @@ class EnergySolve:
     def _parts(self, r, R, lam, lag, tangent, live=False):
         ev = self.P.evaluate(r, R, lam, tangent=tangent)
         bw = barrier_work(r, self.s, self.barrier, hessian=tangent, dofs=6,
-                          directions=self._directions(R))
+                          directions=self._directions(R), near=self.near)
         fw = None
         if lag is not None:
             fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent) if live
@@ -292,22 +303,25 @@ class EnergySolve:
         """The Newton update ``dy`` on the free dofs and the shift used.
         ``live``: the tangent is not symmetric (live normal forces in the
         friction); solved by a pivoting LU, shifted by ``sigma diag|K|`` as
-        given (no inertia to test)."""
-        free, o = self.free, self.options
-        Kf = K[free][:, free].tocsc()
+        given (no inertia to test).  The free block is factorized in the
+        fill-reducing ordering kept across iterations
+        (:class:`~skfem_rod.ordering.KeptOrdering`)."""
+        o = self.options
+        blk = self.ordering.block(K)
+        Kf = blk.A
         d = np.abs(Kf.diagonal())
         d[d == 0] = 1.0
+        b = -blk.to_block(G[self.free])
         if live:
             A = Kf if sigma == 0 else (Kf + sp.diags(sigma * d)).tocsc()
-            b = -G[free]
             try:
                 # nearly symmetric (the energy's Hessian and the friction's
                 # pairs): the symmetric ordering and diagonal pivots where
                 # they are not small, a third of COLAMD's time at the
                 # plectoneme's 1800 dofs; partial pivoting where the
                 # solution's backward error is not small
-                x = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=LIVE_PIVOT,
-                              options=dict(SymmetricMode=True)).solve(b)
+                x = self.ordering.factor(blk._replace(A=A), diag_pivot_thresh=LIVE_PIVOT,
+                                         options=dict(SymmetricMode=True)).solve(b)
                 if not (np.all(np.isfinite(x)) and backward_error(A, x, b) <= 1e-12):
                     x = spla.splu(A, permc_spec="COLAMD").solve(b)
             except RuntimeError:             # exactly singular
@@ -315,24 +329,24 @@ class EnergySolve:
             if not np.all(np.isfinite(x)):
                 raise np.linalg.LinAlgError("non-finite Newton update")
             dy = np.zeros_like(G)
-            dy[free] = x
+            dy[self.free] = blk.from_block(x)
             return dy, sigma, None
         while True:
             A = Kf if sigma == 0 else (Kf + sp.diags(sigma * d)).tocsc()
             try:
-                lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                               options=dict(SymmetricMode=True))
-                x = lu.solve(-G[free])
+                lu = self.ordering.factor(blk._replace(A=A), diag_pivot_thresh=0.0,
+                                          options=dict(SymmetricMode=True))
+                x = lu.solve(b)
                 if np.array_equal(lu.perm_r, lu.perm_c):
                     definite = bool(np.all(lu.U.diagonal() > 0))
                 else:                        # pivoted: descent is all one can tell
-                    definite = float(G[free] @ x) < 0
+                    definite = float(b @ x) > 0
             except RuntimeError:             # exactly singular
                 definite = False
             if definite and np.all(np.isfinite(x)):
                 dy = np.zeros_like(G)
-                dy[free] = x
-                return dy, sigma, Factor(lu, Kf, d)
+                dy[self.free] = blk.from_block(x)
+                return dy, sigma, Factor(lu, blk, d)
             sigma = o.shift_start if sigma == 0 else 10 * sigma
             rep.shifts += 1
             if sigma > 1e12:
@@ -351,17 +365,19 @@ class EnergySolve:
         ``CURVATURE_GAIN`` times the Newton step's drop ``newton_drop``.  Returns ``(r, R, E, parts)`` or None
         (no negative mode, no promising or no accepted step)."""
         o, P, free = self.options, self.P, self.free
-        lu, Kf, d = factor
+        lu, blk, d = factor
         # from the Newton update: where the lowest mode is degenerate (a
         # round section buckles in any plane) the estimate keeps to the
-        # plane the loads push towards
-        v = dy[free] / max(float(np.linalg.norm(dy[free])), 1e-300)
+        # plane the loads push towards (all in the factor's order)
+        v = blk.to_block(dy[free])
+        v = v / max(float(np.linalg.norm(v)), 1e-300)
         for _ in range(CURVATURE_ITERATIONS):
             v = lu.solve(d * v)
             v /= np.linalg.norm(v)
-        curv = float(v @ (Kf @ v)) / float(v @ (d * v))
+        curv = float(v @ (blk.A @ v)) / float(v @ (d * v))
         if not curv < 0:
             return None
+        d, v = blk.from_block(d), blk.from_block(v)
         g = G[free]
         if float(g @ v) > 0:
             v = -v
@@ -375,7 +391,7 @@ class EnergySolve:
         slope = float(g @ step[free])
         quad = curv * float(step[free] @ (d * step[free]))
         t = min(1.0, step_bound(r, step.reshape(-1, 6)[:, :3], self.s, self.barrier,
-                                o.fraction, self._directions(R)))
+                                o.fraction, self._directions(R), self.near))
         for halving in range(CURVATURE_HALVINGS):
             if -(t * slope + 0.5 * t * t * quad) < CURVATURE_GAIN * newton_drop:
                 return None
@@ -395,10 +411,9 @@ class EnergySolve:
         (Sylvester: the negative pivots of an LU without off-diagonal
         pivoting), or None where the LU pivoted off the diagonal or the
         matrix is singular."""
-        free = self.free
         try:
-            lu = spla.splu(K[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A",
-                           diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+            lu = self.ordering.factor(self.ordering.block(K), diag_pivot_thresh=0.0,
+                                      options=dict(SymmetricMode=True))
         except RuntimeError:
             return None
         if not np.array_equal(lu.perm_r, lu.perm_c):
@@ -468,7 +483,7 @@ class EnergySolve:
             alpha = min(1.0,
                         o.max_spin / max(float(np.linalg.norm(d6[:, 3:], axis=1).max()), 1e-300),
                         step_bound(r, d6[:, :3], self.s, self.barrier, o.fraction,
-                                   self._directions(R)))
+                                   self._directions(R), self.near))
             for halving in range(LIVE_HALVINGS if live else o.halvings):
                 try:
                     rt, Rt = P.update(r, R, dy, alpha)
@@ -537,7 +552,7 @@ class EnergySolve:
         if previous is not None:
             dy = ratio * P.increment(r, R, previous[0], previous[1])
             a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
-                           self._directions(R))
+                           self._directions(R), self.near)
             try:
                 r1, R1 = P.update(r, R, dy, a)
                 if a < 1:

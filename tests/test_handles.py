@@ -152,6 +152,28 @@ def test_handles_belong_to_open_rods():
         step_bound(x, np.zeros_like(x), s, _barrier())
 
 
+@pytest.mark.filterwarnings("ignore::skfem_rod.minimize.BarrierResolution")
+def test_handles_need_both_ends_rotations_held():
+    """A handle turns with its end: an end free to turn about any axis is
+    refused by name (the end at s = L of the clamped hairpin; then with
+    one component of its rotation held, then all three: accepted)."""
+    from skfem_rod.minimize import BarrierStepper
+    from skfem_rod.options import split_barrier_options
+
+    from test_barrier_solve import _pressed
+
+    rod, _, _ = _pressed(0.0)
+    opts = split_barrier_options(dict(handles=True))
+    L = rod.length
+    with pytest.raises(ValueError, match=f"end at s = {L:g} turns freely"):
+        BarrierStepper(rod, *opts)
+    rod.fix_rotation("end", components=(0, 1))
+    with pytest.raises(ValueError, match="turns freely"):
+        BarrierStepper(rod, *opts)
+    rod.fix_rotation("end")
+    assert BarrierStepper(rod, *opts).solve.barrier.handles
+
+
 
 @pytest.mark.slow
 @pytest.mark.parametrize("handles", [False, True])
