@@ -100,6 +100,7 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                total_iterations=int(its.sum()),
                failed_tries=sum("cutting the step" in line for line in result.log),
                fallbacks=sum("settled to lag_tol" in line for line in result.log),
+               log=list(result.log),
                max_true_penetration=max((q["true_penetration"] for q in recs), default=None),
                max_coulomb_excess=max((q["coulomb"] for q in recs), default=None),
                width=width, force=force, step=step)

@@ -109,6 +109,14 @@ CURVATURE_HALVINGS = 4
 #: the live tangent's LU keeps a diagonal pivot unless it is below this
 #: share of its column's largest entry (SuperLU's diag_pivot_thresh)
 LIVE_PIVOT = 0.01
+#: the lag's fixed point iteration (``EnergySolve._settle``) has stalled,
+#: and the step fails, when LAG_STALL lags in a row did not bring the
+#: normal forces' change (relative to the largest force) below LAG_GAIN
+#: times the least change before: measured on the frictional plectoneme,
+#: a step whose lag stalls (changes of 0.6-1.1 of the largest force for
+#: 60 lags) succeeds when cut
+LAG_STALL = 8
+LAG_GAIN = 0.9
 #: the barrier's pair list (:class:`~skfem_rod.contact.barrier.NearPairs`)
 #: holds the pairs within its reach plus this many radii: kept while no
 #: node moved by half of that
@@ -633,7 +641,8 @@ class EnergySolve:
         sigma)``, or None with ``rep.reason`` set."""
         o = self.options
         final = False
-        for _ in range(o.max_lags):
+        least, since = np.inf, 0          # the least relative change, lags since
+        for k in range(o.max_lags):
             r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
                                         None if final else rtol)
             rep.lags += 1
@@ -642,11 +651,22 @@ class EnergySolve:
             new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
             change = lag_change(lag, new, r1.shape[0])
             rep.lag_change = change
-            if change <= tol * new.force.max(initial=0.0):
+            top = new.force.max(initial=0.0)
+            if change <= tol * top:
                 if final or not tight:
                     return r1, R1, lag, sigma
                 final, lag = True, new
                 continue
+            # a fixed point iteration that has stopped contracting: the
+            # step is cut (by the caller) now rather than after max_lags
+            rel = change / top if top > 0 else np.inf
+            least, since = (rel, 0) if rel < LAG_GAIN * least else (least, since + 1)
+            if since >= LAG_STALL:
+                rep.reason = (f"the friction lag stalled: no lag in the last {LAG_STALL} "
+                              f"changed the normal forces by less than {LAG_GAIN:g} times "
+                              f"the least change before ({least:.3g} of the largest force; "
+                              f"{k + 1} solves)")
+                return None
             lag = relax(new, lag)
         rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
         return None

@@ -268,3 +268,41 @@ def test_a_reference_bent_tighter_than_half_the_radius_is_refused():
     rod.enable_contact(radius=rho)
     with pytest.warns(BarrierResolution):
         assert rod.solve(1, method="barrier").converged
+
+
+@pytest.mark.slow
+def test_a_stalled_friction_lag_fails_the_step_early_and_the_cut_step_converges():
+    """The 100-element frictional barrier plectoneme (gamma_T = 0.3,
+    handles) at 5.9375 turns, saved by ``benchmarks/plectoneme_state.py
+    100 95 ... 0.3 handles``: its next step of 1/16 turn slips, the live
+    Newton fails, and the fallback's lag does not contract (changes of
+    0.2-1 of the largest normal force, lag after lag; before the stall
+    test all 60 lags ran, 33 s).  The step fails naming the stall, well
+    before ``max_lags``; half the step converges, Coulomb's law at its
+    pairs."""
+    from pathlib import Path
+
+    from helpers import load_bench
+    from skfem_rod.minimize import LAG_STALL, BarrierStepper
+    from skfem_rod.options import split_barrier_options
+
+    bp = load_bench("bench_plectoneme")
+    d = np.load(Path(__file__).with_name("data") / "plectoneme_stall.npz")
+    rod = bp.build(100, 0.3)
+    stepper = BarrierStepper(rod, *split_barrier_options(dict(barrier_force=1.0, handles=True)))
+    S = stepper.solve
+    lam1 = float(d["lam1"])
+    dlam = lam1 - float(d["lam0"])
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]))
+    assert not rep.converged and "stalled" in rep.reason
+    # the first settle, the live solves, then the fallback's lags: at most
+    # LAG_STALL + a few more than the least change's lag
+    assert rep.lags < S.options.max_lags // 2
+    assert rep.lags >= LAG_STALL
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam / 2, (d["r0"], d["R0"]), 0.0, 0.5)
+    assert rep.converged, rep.reason
+    nc = S.contact(r, R, rep)
+    assert nc.force.size > 0
+    # Coulomb: no friction force above mu times its pair's normal force
+    excess = np.linalg.norm(nc.friction, axis=1) - S.mu * nc.force
+    assert excess.max() <= 1e-9 * S.mu * nc.force.max()
