@@ -28,7 +28,8 @@ the converged state from the recorded contact forces
 (:func:`coulomb_excess`) and the true penetration of the centrelines
 (``ContactState.min_distance``: closest points of element pairs, both
 parameters free), the link (twist + writhe, after the solve); per run the
-failed tries and the friction's fallbacks (``Result.log``) and how far the
+failed tries, the friction's fallbacks and pseudo-time steps through
+slips (``Result.log``) and how far the
 link fell from the turns applied.  The ends carry handles (``handles=True``:
 rigid continuations along the axis, so that no strand passes around an
 end); ``--no-handles`` runs PyElastica's set-up as it is, where the
@@ -100,6 +101,8 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
                total_iterations=int(its.sum()),
                failed_tries=sum("cutting the step" in line for line in result.log),
                fallbacks=sum("settled to lag_tol" in line for line in result.log),
+               damped_steps=sum(int(line.split(": ")[1].split()[0]) for line in result.log
+                                if "pseudo-time step(s) through a slip" in line),
                log=list(result.log),
                max_true_penetration=max((q["true_penetration"] for q in recs), default=None),
                max_coulomb_excess=max((q["coulomb"] for q in recs), default=None),
@@ -109,7 +112,8 @@ def run(n_elements, gamma_T=0.0, turns=bp.TURNS, step=1 / 16, budget=300.0, widt
         print(f"  -> {out['turns']:.3f} turns (link {recs[-1]['link'] if recs else 0:.3f}) in "
               f"{out['wall']:.1f} s, median "
               f"{out['median_iterations']} Newton iterations per step, "
-              f"{out['failed_tries']} failed tries, {out['fallbacks']} fallbacks"
+              f"{out['failed_tries']} failed tries, {out['fallbacks']} fallbacks, "
+              f"{out['damped_steps']} pseudo-time steps"
               + (f"; stopped: {out['stop']}" if out["stop"] else ""), flush=True)
     return out
 

@@ -69,6 +69,7 @@ Newton on E (the energy; with friction, E + D at the lag):
         near a saddle): also a step along the tangent's negative lowest
         mode, taken where it lowers the energy more (_curvature_step)
 """
+import logging
 import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple, Optional
@@ -109,6 +110,8 @@ CURVATURE_HALVINGS = 4
 #: the live tangent's LU keeps a diagonal pivot unless it is below this
 #: share of its column's largest entry (SuperLU's diag_pivot_thresh)
 LIVE_PIVOT = 0.01
+
+logger = logging.getLogger(__name__)
 #: the lag's fixed point iteration (``EnergySolve._settle``) has stalled,
 #: and the step fails, when LAG_STALL lags in a row did not bring the
 #: normal forces' change (relative to the largest force) below LAG_GAIN
@@ -117,6 +120,28 @@ LIVE_PIVOT = 0.01
 #: 60 lags) succeeds when cut
 LAG_STALL = 8
 LAG_GAIN = 0.9
+#: a frictional step whose static solve failed for one of these reasons
+#: (the friction found no path through the step: the plies slip) is taken
+#: by pseudo-time steps (``EnergySolve._damped``): each minimizes the
+#: energy plus the friction from the last one's state plus the proximal
+#: term ``c/2 |x - x_k|^2 + c r^2/2 (3 - tr(R R_k^T))`` per node, ``c``
+#: from DAMPED_STIFFNESS times the force scale over the radius, divided by
+#: DAMPED_GROWTH after each quick step (a longer pseudo-time step) and
+#: multiplied by it after a failed one; once the proximal force is below
+#: DAMPED_REST of the force scale the static solve is tried from there
+#: (at most DAMPED_STEPS steps)
+DAMPED_SLIPS = True
+SLIP_FAILURES = ("the friction lag stalled", "the friction lag did not settle",
+                 "no equilibrium with its own lag")
+DAMPED_STIFFNESS = 1e3
+DAMPED_GROWTH = 4.0
+DAMPED_REST = 1e-3
+DAMPED_STEPS = 60
+#: a pseudo-time step solved in at most this many iterations lengthens the next
+DAMPED_QUICK = 25
+#: after a failed static step from the flow, the next is tried once the
+#: proximal force has fallen to this share of the force at that attempt
+DAMPED_RETRY = 0.1
 #: the barrier's pair list (:class:`~skfem_rod.contact.barrier.NearPairs`)
 #: holds the pairs within its reach plus this many radii: kept while no
 #: node moved by half of that
@@ -140,6 +165,41 @@ class Factor(NamedTuple):
     d: np.ndarray
 
 
+class Proximal(NamedTuple):
+    """The anchor of a pseudo-time step (:meth:`EnergySolve._damped`):
+    the energy gains ``c/2 |x - r|^2 + c length^2 / 2 (3 - tr(R_x R^T))``
+    per node (``3 - tr`` is ``|theta|^2`` to second order in the
+    rotation ``theta`` from the anchor)."""
+    r: np.ndarray
+    R: np.ndarray
+    c: float                  # force per length
+    length: float             # rotations weigh as displacements of this arm
+
+
+def proximal_work(r, R, prox, tangent=True):
+    """``(E, G, K)`` of the :class:`Proximal` term at ``(r, R)``: the
+    gradient over the dofs (positions, spatial spins), the tangent (the
+    gradient's derivative along the spin update ``R <- exp(w) R``: ``c
+    l^2 / 2 (tr(B) I - B)``, ``B = R R_k^T``; not symmetric away from the
+    anchor, as the rod's own) block diagonal, or None."""
+    n = r.shape[0]
+    dx = r - prox.r
+    B = R @ np.swapaxes(prox.R, 1, 2)
+    tr = np.trace(B, axis1=1, axis2=2)
+    cw = prox.c * prox.length ** 2
+    E = 0.5 * prox.c * float(np.sum(dx * dx)) + 0.5 * cw * float(np.sum(3.0 - tr))
+    b = 0.5 * np.stack([B[:, 2, 1] - B[:, 1, 2], B[:, 0, 2] - B[:, 2, 0],
+                        B[:, 1, 0] - B[:, 0, 1]], axis=1)
+    G = np.hstack([prox.c * dx, cw * b]).ravel()
+    K = None
+    if tangent:
+        blk = np.zeros((n, 6, 6))
+        blk[:, :3, :3] = prox.c * np.eye(3)
+        blk[:, 3:, 3:] = 0.5 * cw * (tr[:, None, None] * np.eye(3) - B)
+        K = sp.bsr_matrix((blk, np.arange(n), np.arange(n + 1)), shape=(6 * n, 6 * n)).tocsc()
+    return E, G, K
+
+
 @dataclass
 class StepReport:
     """What one step took."""
@@ -151,6 +211,8 @@ class StepReport:
     curvature_steps: int = 0      # updates along the tangent's negative lowest mode
     lags: int = 0                 # friction lags solved
     fallbacks: int = 0            # live solves that failed (then solved on the energy)
+    damped: int = 0               # pseudo-time steps through a slip (friction)
+    slip: str = ""                # why the static solve failed where they were taken
     live: bool = False            # friction at the state's own normal forces (else the lag's)
     lag_change: float = 0.0       # the last lag's largest change of a normal force
     residual: float = np.inf
@@ -173,6 +235,20 @@ class StepReport:
     #: state's own normal forces where ``live``, at its lag's otherwise);
     #: on the supported dofs the reactions
     out_of_balance: Optional[np.ndarray] = None
+
+
+def _absorb(into, sub, before=False):
+    """Add the counts of the :class:`StepReport` ``sub`` to ``into``, and
+    its residual histories after ``into``'s (``before``: ahead of them)."""
+    # (not the fallbacks: they tell what friction the last solve's state holds)
+    for name in ("iterations", "shifts", "halvings", "retries", "curvature_steps", "lags"):
+        setattr(into, name, getattr(into, name) + getattr(sub, name))
+    if before:
+        into.history[:0] = sub.history
+        into.solves[:0] = sub.solves
+    else:
+        into.history.extend(sub.history)
+        into.solves.extend(sub.solves)
 
 
 class EnergySolve:
@@ -217,6 +293,8 @@ class EnergySolve:
         # the barrier's pairs from a list kept while the nodes move less
         # than a quarter of the radius (NEAR_SKIN)
         self.near = NearPairs(NEAR_SKIN * self.radius)
+        #: the anchor of a pseudo-time step while one is solved (_damped)
+        self.proximal = None
         # no kink tighter than half the radius (barrier module doc, "Local
         # self-contact")
         self.bend = Bend.for_rod(self.s, self.radius, max(rod.section.EI1, rod.section.EI2),
@@ -271,12 +349,18 @@ class EnergySolve:
         if fw is not None:
             # live: no potential; E stays the rest's (infinite on contact)
             E, G = (E if live else E + fw.energy), G + fw.gradient.ravel()
+        pw = None
+        if self.proximal is not None:               # a pseudo-time step
+            pw = proximal_work(r, R, self.proximal, tangent)
+            E, G = E + pw[0], G + pw[1]
         K = None
         if tangent:
             K = ev.tangent + bw.hessian + (fw.hessian if fw is not None else 0)
             for local in (kw, sw):
                 if local.hessian is not None:
                     K = K + local.hessian
+            if pw is not None:
+                K = K + pw[2]
         return E, G, K, ev, bw
 
     def energy(self, r, R, lam, lag=None):
@@ -546,13 +630,15 @@ class EnergySolve:
             rep.iterations += 1
 
     # -- one load step ---------------------------------------------------
-    def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0):
+    def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, damped=True):
         """From the equilibrium ``(r, R)`` at load factor ``lam`` to
         ``lam + dlam`` (``previous``: the equilibrium before, for the secant
         predictor, the increment from it times ``ratio``, this step's size
-        over the last one's).  Returns ``(r, R, StepReport)``; on failure
-        the state given back is where the solve stopped (not an
-        equilibrium)."""
+        over the last one's).  With friction, where the static solve finds
+        no path through the step (``SLIP_FAILURES``) and ``damped``:
+        pseudo-time steps through it (:meth:`_damped`).  Returns ``(r, R,
+        StepReport)``; on failure the state given back is where the solve
+        stopped (not an equilibrium)."""
         P, o = self.P, self.options
         rep = StepReport(converged=False, sigma=sigma)
         p = P.prescribed(dlam)
@@ -577,10 +663,23 @@ class EnergySolve:
                 return r1, R1, rep
             rep.sigma = sigma
             return r1, R1, self._checked(r1, rep)
-        # friction: the lag's normal forces brought to a fixed point on the
-        # energy (Aitken-relaxed) until they change by less than live_tol
-        # of the largest; then Newton at the state's own (live) normal
-        # forces, until the state is an equilibrium with its own lag
+        r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep)
+        if rep.converged or not (DAMPED_SLIPS and damped) or not rep.reason.startswith(
+                SLIP_FAILURES):
+            return r2, R2, rep
+        # no static path through the step (a slip): pseudo-time steps
+        return self._damped(r, R, r1, R1, lam1, sigma, rep)
+
+    def _frictional(self, r, R, r1, R1, lam1, sigma, rep):
+        """The frictional solve of the step from the equilibrium ``(r, R)``
+        to the load factor ``lam1``, from the predicted ``(r1, R1)``: the
+        lag's normal forces brought to a fixed point on the energy
+        (Aitken-relaxed) until they change by less than ``live_tol`` of the
+        largest; then Newton at the state's own (live) normal forces, until
+        the state is an equilibrium with its own lag; where that fails, the
+        lag settled to ``lag_tol`` (the fallback).  Returns ``(r, R,
+        rep)``."""
+        o = self.options
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
         held = lag.pairs
         settled = self._settle(r, R, r1, R1, lam1, lag, held, Relaxation(r.shape[0]),
@@ -616,6 +715,69 @@ class EnergySolve:
         r1, R1, lag, sigma = settled
         rep.sigma, rep.friction = sigma, lag
         return r1, R1, self._checked(r1, rep)
+
+    def _damped(self, r, R, r1, R1, lam1, sigma, rep):
+        """The frictional step from the equilibrium ``(r, R)`` to ``lam1``
+        whose static solve failed (``rep``: its report, the predicted
+        ``(r1, R1)``), by pseudo-time steps at ``lam1``: each minimizes the
+        energy with the friction from the last step's state (its lag
+        settled to ``live_tol``) and the :class:`Proximal` term anchored
+        there (module constants ``DAMPED_*``), an implicit step of a
+        viscous flow whose friction acts against each pseudo-time step's
+        slip; once the proximal force has fallen below ``DAMPED_REST`` of
+        the force scale, the static step from that state (friction from
+        it) ends it.  Returns ``(r, R, StepReport)`` as :meth:`step`;
+        ``damped`` counts the pseudo-time steps."""
+        o, n = self.options, r.shape[0]
+        ev = self.P.evaluate(r, R, lam1, tangent=False)
+        scale = self.P.force_scale(ev)
+        c0 = DAMPED_STIFFNESS * scale / self.radius
+        c = c0
+        first = rep.reason
+        rep.reason = ""
+        rest = DAMPED_REST * scale        # the proximal force to try the static step at
+        a_r, a_R = r, R                   # the anchor: the last step's state
+        y_r, y_R = r1, R1                 # where the next solve starts
+        for _ in range(DAMPED_STEPS):
+            lag = friction_lag(a_r, a_R, a_r, a_R, self.s, self.barrier)
+            sub = StepReport(converged=False, sigma=sigma)
+            self.proximal = Proximal(a_r, a_R, c, self.radius)
+            try:
+                settled = self._settle(a_r, a_R, y_r, y_R, lam1, lag, lag.pairs,
+                                       Relaxation(n), o.lag_tol, o.lag_rtol, sigma, sub)
+            finally:
+                self.proximal = None
+            _absorb(rep, sub)
+            if settled is None:
+                c *= DAMPED_GROWTH        # a shorter pseudo-time step
+                y_r, y_R = a_r, a_R
+                if c > c0 * DAMPED_GROWTH ** 4:
+                    break
+                continue
+            y_r, y_R, _, sigma = settled
+            rep.damped += 1
+            # the proximal force left at the step's state (on the free dofs)
+            force = float(np.linalg.norm(proximal_work(
+                y_r, y_R, Proximal(a_r, a_R, c, self.radius), False)[1][self.free]))
+            logger.debug("pseudo-time step %d: c %.3g, %d iterations, %d lags, proximal "
+                         "force %.3g of the force scale", rep.damped, c, sub.iterations,
+                         sub.lags, force / scale)
+            a_r, a_R = y_r, y_R
+            if sub.iterations <= DAMPED_QUICK:
+                c /= DAMPED_GROWTH        # a longer one
+            if force <= rest:
+                # near rest: the static step from here, friction from here
+                r2, R2, fin = self.step(a_r, a_R, lam1, 0.0, None, sigma, damped=False)
+                _absorb(fin, rep, before=True)
+                fin.damped, fin.slip = rep.damped, first
+                if fin.converged:
+                    return r2, R2, fin
+                rep = fin
+                rep.reason = ""
+                rest = DAMPED_RETRY * force     # not again before the flow has slowed
+        rep.reason = (f"{first}; then {rep.damped} pseudo-time steps found no equilibrium "
+                      f"(last proximal stiffness {c:.3g})")
+        return y_r, y_R, rep
 
     def _checked(self, r1, rep):
         """``rep`` of a solved step at the positions ``r1``, converged if
@@ -739,6 +901,7 @@ class BarrierStepper:
         self.result = Result(rod)
         self.deadline = Deadline(opts.time_limit)
         self.sigma = 0.0               # the tangent's shift the next step starts from
+        self.failed_from = None        # the load factor a step last failed from
 
     def initial(self, r0, R0):
         """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
@@ -755,9 +918,15 @@ class BarrierStepper:
         previous, ratio = None, 1.0
         if self.opts.predictor == "secant" and prev is not None and lam != prev[0]:
             previous, ratio = (prev[1], prev[2]), (lam_new - lam) / (lam - prev[0])
-        r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio)
+        # pseudo-time steps through a slip only once a step from here has
+        # failed: where the cut step converges statically, cutting is cheaper
+        r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio,
+                                      damped=lam == self.failed_from)
         if rep.converged:
             self.sigma = rep.sigma
+            self.failed_from = None
+        else:
+            self.failed_from = lam
         return r1, R1, rep
 
     def keep(self, lam, r, R, rep, t, callback):
@@ -778,6 +947,10 @@ class BarrierStepper:
                 f"step to lam={lam:.6g}: an unstable equilibrium, a saddle of the energy "
                 f"({rep.negative} negative eigenvalue(s) of its Hessian; e.g. held by a "
                 f"symmetry that no load breaks)")
+        if rep.damped:
+            self.result.log.append(
+                f"step to lam={lam:.6g}: {rep.damped} pseudo-time step(s) through a slip (the "
+                f"static solve found no path: {rep.slip})")
         if rep.fallbacks:
             self.result.log.append(
                 f"step to lam={lam:.6g}: the Newton at the state's own normal forces failed "

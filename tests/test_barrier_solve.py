@@ -113,24 +113,27 @@ def test_load_and_unload_returns_to_the_reference_without_friction():
 def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
     """A step that fails is cut in half by the load path
     (solver.follow_path), grows back after two successes, and with
-    min_step above the cut it stops saying where and why."""
+    min_step above the cut it stops saying where and why.  The cut step
+    (and only a step from where one failed) may take pseudo-time steps
+    through a slip (``damped``)."""
     rod, eps, _ = _pressed(0.0)
     calls = []
     step = EnergySolve.step
 
-    def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0):
-        calls.append((round(lam, 12), round(dlam, 12), previous is not None))
+    def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, damped=True):
+        calls.append((round(lam, 12), round(dlam, 12), previous is not None, damped))
         if dlam > 0.3:
             return r, R, StepReport(converged=False, reason="too long a step")
-        return step(self, r, R, lam, dlam, previous, sigma, ratio)
+        return step(self, r, R, lam, dlam, previous, sigma, ratio, damped)
 
     monkeypatch.setattr(EnergySolve, "step", capped)
     result = rod.solve(2, method="barrier", barrier_force=1.0)
     assert result.converged, result.message
     assert np.allclose(result.load_factors, [0, 0.25, 0.5, 0.75, 1.0])
-    assert calls == [(0.0, 0.0, False), (0.0, 0.5, False), (0.0, 0.25, False),
-                     (0.25, 0.25, True), (0.5, 0.5, True), (0.5, 0.25, True),
-                     (0.75, 0.25, True)]
+    assert calls == [(0.0, 0.0, False, True), (0.0, 0.5, False, False),
+                     (0.0, 0.25, False, True), (0.25, 0.25, True, False),
+                     (0.5, 0.5, True, False), (0.5, 0.25, True, True),
+                     (0.75, 0.25, True, False)]
     assert sum("too long a step" in line for line in result.log) == 2
     monkeypatch.setattr(EnergySolve, "step", step)
     four = rod.solve(4, method="barrier", barrier_force=1.0)
@@ -271,20 +274,22 @@ def test_a_reference_bent_tighter_than_half_the_radius_is_refused():
 
 
 @pytest.mark.slow
-def test_a_stalled_friction_lag_fails_the_step_early_and_the_cut_step_converges():
+def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     """The 100-element frictional barrier plectoneme (gamma_T = 0.3,
     handles) at 5.9375 turns, saved by ``benchmarks/plectoneme_state.py
     100 95 ... 0.3 handles``: its next step of 1/16 turn slips, the live
     Newton fails, and the fallback's lag does not contract (changes of
     0.2-1 of the largest normal force, lag after lag; before the stall
-    test all 60 lags ran, 33 s).  The step fails naming the stall, well
-    before ``max_lags``; half the step converges, Coulomb's law at its
-    pairs."""
+    test all 60 lags ran, 33 s).  The static step fails naming the stall,
+    well before ``max_lags``.  Taken by pseudo-time steps through the
+    slip instead, the whole step converges: an equilibrium with Coulomb's
+    law at its pairs, the link kept, no overlap."""
     from pathlib import Path
 
     from helpers import load_bench
     from skfem_rod.minimize import LAG_STALL, BarrierStepper
     from skfem_rod.options import split_barrier_options
+    from skfem_rod.topology import topology
 
     bp = load_bench("bench_plectoneme")
     d = np.load(Path(__file__).with_name("data") / "plectoneme_stall.npz")
@@ -293,16 +298,24 @@ def test_a_stalled_friction_lag_fails_the_step_early_and_the_cut_step_converges(
     S = stepper.solve
     lam1 = float(d["lam1"])
     dlam = lam1 - float(d["lam0"])
-    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]))
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]), damped=False)
     assert not rep.converged and "stalled" in rep.reason
     # the first settle, the live solves, then the fallback's lags: at most
     # LAG_STALL + a few more than the least change's lag
-    assert rep.lags < S.options.max_lags // 2
-    assert rep.lags >= LAG_STALL
-    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam / 2, (d["r0"], d["R0"]), 0.0, 0.5)
+    assert LAG_STALL <= rep.lags < S.options.max_lags // 2
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]))
     assert rep.converged, rep.reason
+    assert rep.damped > 0 and "stalled" in rep.slip
+    assert rep.true_distance >= 2 * bp.RADIUS * (1 - S.options.penetration_tol)
     nc = S.contact(r, R, rep)
     assert nc.force.size > 0
     # Coulomb: no friction force above mu times its pair's normal force
     excess = np.linalg.norm(nc.friction, axis=1) - S.mu * nc.force
     assert excess.max() <= 1e-9 * S.mu * nc.force.max()
+    # an equilibrium: the out-of-balance force on the free dofs within rtol
+    G = S.residual(r, R, lam1 + dlam, rep.friction) if rep.live else rep.out_of_balance
+    assert np.linalg.norm(G[S.free]) <= S.options.rtol * S.P.force_scale(rep.evaluation)
+    o = np.argsort(rod.mesh.s_nodes)
+    t = topology(r[o], R[o][:, :, 0], t_start=R[o][0][:, 2], t_end=R[o][-1][:, 2])
+    assert t.twist - t.closure_twist + t.writhe == pytest.approx((lam1 + dlam) * bp.TURNS,
+                                                                 abs=1e-6)

@@ -265,3 +265,38 @@ def test_a_saddle_is_left_along_its_negative_curvature(monkeypatch):
     assert np.abs(r1 - r0).max() <= 1e-6 and np.abs(r1[:, 1]).max() > 0.05   # buckled
     r, rep, E = solved(0.0, True)
     assert np.abs(r[:, 1:]).max() == 0.0 and rep.negative >= 2 and E > E0
+
+
+def test_proximal_term_matches_finite_differences_along_the_solves_update():
+    """The pseudo-time step's proximal term (:func:`proximal_work`) from
+    an anchor turned and moved away by a random finite motion: its
+    gradient against central differences of its energy along the solve's
+    own update (positions and spatial spins, ``Problem.update``), its
+    tangent column by column against differences of the gradient; zero
+    energy and gradient at the anchor, tangent ``diag(c, c l^2)`` there."""
+    from skfem_rod.minimize import Proximal, proximal_work
+    rod, eps, barrier = _hairpin()
+    solve = EnergySolve(rod, barrier, eps)
+    P = solve.P
+    rng = np.random.default_rng(8)
+    r0, R0 = rod.r0.copy(), rod.R0.copy()
+    n = r0.shape[0]
+    prox = Proximal(r0, R0, 3.0, 0.2)
+    E, G, K = proximal_work(r0, R0, prox)
+    assert abs(E) <= 1e-15 * n and np.abs(G).max() <= 1e-15     # 3 - tr(I): round-off
+    assert np.allclose(K.diagonal(), np.tile([3.0] * 3 + [3.0 * 0.04] * 3, n))
+    away = rng.standard_normal(6 * n) * 0.3
+    r, R = P.update(r0, R0, away)
+    E, G, K = proximal_work(r, R, prox)
+    h = 1e-6
+    v = rng.standard_normal(6 * n)
+    Ep = proximal_work(*P.update(r, R, v, h), prox, False)[0]
+    Em = proximal_work(*P.update(r, R, v, -h), prox, False)[0]
+    assert (Ep - Em) / (2 * h) == pytest.approx(float(G @ v), rel=1e-7)
+    Kd = K.toarray()
+    for j in rng.choice(6 * n, 24, replace=False):
+        e = np.zeros(6 * n)
+        e[j] = 1.0
+        col = (proximal_work(*P.update(r, R, e, h), prox, False)[1]
+               - proximal_work(*P.update(r, R, e, -h), prox, False)[1]) / (2 * h)
+        assert np.abs(col - Kd[:, j]).max() <= 1e-6 * np.abs(Kd).max()
