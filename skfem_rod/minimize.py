@@ -131,14 +131,18 @@ LAG_GAIN = 0.9
 #: DAMPED_REST of the force scale the static solve is tried from there
 #: (at most DAMPED_STEPS steps)
 DAMPED_SLIPS = True
+SLIP_LIVE = "the live Newton found no equilibrium with its own lag"
 SLIP_FAILURES = ("the friction lag stalled", "the friction lag did not settle",
-                 "no equilibrium with its own lag")
+                 "no equilibrium with its own lag", SLIP_LIVE)
 DAMPED_STIFFNESS = 1e3
 DAMPED_GROWTH = 4.0
 DAMPED_REST = 1e-3
 DAMPED_STEPS = 60
 #: a pseudo-time step solved in at most this many iterations lengthens the next
 DAMPED_QUICK = 25
+#: the steps of a load path after a failed one that may take pseudo-time
+#: steps (BarrierStepper.advance)
+DAMPED_CALM = 2
 #: after a failed static step from the flow, the next is tried once the
 #: proximal force has fallen to this share of the force at that attempt
 DAMPED_RETRY = 0.1
@@ -663,22 +667,24 @@ class EnergySolve:
                 return r1, R1, rep
             rep.sigma = sigma
             return r1, R1, self._checked(r1, rep)
-        r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep)
-        if rep.converged or not (DAMPED_SLIPS and damped) or not rep.reason.startswith(
-                SLIP_FAILURES):
+        damped = DAMPED_SLIPS and damped
+        # with pseudo-time steps to go on with, not the fallback: where the
+        # live solve fails the plies slip (its lag stalls, 10-60 s measured)
+        r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep, fallback=not damped)
+        if rep.converged or not damped or not rep.reason.startswith(SLIP_FAILURES):
             return r2, R2, rep
         # no static path through the step (a slip): pseudo-time steps
         return self._damped(r, R, r1, R1, lam1, sigma, rep)
 
-    def _frictional(self, r, R, r1, R1, lam1, sigma, rep):
+    def _frictional(self, r, R, r1, R1, lam1, sigma, rep, fallback=True):
         """The frictional solve of the step from the equilibrium ``(r, R)``
         to the load factor ``lam1``, from the predicted ``(r1, R1)``: the
         lag's normal forces brought to a fixed point on the energy
         (Aitken-relaxed) until they change by less than ``live_tol`` of the
         largest; then Newton at the state's own (live) normal forces, until
         the state is an equilibrium with its own lag; where that fails, the
-        lag settled to ``lag_tol`` (the fallback).  Returns ``(r, R,
-        rep)``."""
+        lag settled to ``lag_tol`` (the ``fallback``; without it the step
+        fails there, ``SLIP_LIVE``).  Returns ``(r, R, rep)``."""
         o = self.options
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
         held = lag.pairs
@@ -703,6 +709,9 @@ class EnergySolve:
                 return r1, R1, self._checked(r1, rep)
         else:
             rep.reason = f"no equilibrium with its own lag in {o.max_lags} live solves"
+        if not fallback:
+            rep.reason = f"{SLIP_LIVE} ({rep.reason})"
+            return r1, R1, rep
         # the live solve failed: the lag settled to lag_tol instead, solved
         # to rtol there and checked again
         rep.fallbacks += 1
@@ -721,7 +730,8 @@ class EnergySolve:
         whose static solve failed (``rep``: its report, the predicted
         ``(r1, R1)``), by pseudo-time steps at ``lam1``: each minimizes the
         energy with the friction from the last step's state (its lag
-        settled to ``live_tol``) and the :class:`Proximal` term anchored
+        settled to ``lag_tol``, solved to ``lag_rtol``) and the
+        :class:`Proximal` term anchored
         there (module constants ``DAMPED_*``), an implicit step of a
         viscous flow whose friction acts against each pseudo-time step's
         slip; once the proximal force has fallen below ``DAMPED_REST`` of
@@ -901,7 +911,7 @@ class BarrierStepper:
         self.result = Result(rod)
         self.deadline = Deadline(opts.time_limit)
         self.sigma = 0.0               # the tangent's shift the next step starts from
-        self.failed_from = None        # the load factor a step last failed from
+        self.calm = DAMPED_CALM          # steps converged since one failed
 
     def initial(self, r0, R0):
         """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
@@ -918,15 +928,16 @@ class BarrierStepper:
         previous, ratio = None, 1.0
         if self.opts.predictor == "secant" and prev is not None and lam != prev[0]:
             previous, ratio = (prev[1], prev[2]), (lam_new - lam) / (lam - prev[0])
-        # pseudo-time steps through a slip only once a step from here has
-        # failed: where the cut step converges statically, cutting is cheaper
+        # pseudo-time steps through a slip (in place of the fallback) only
+        # after a failed step, for DAMPED_CALM steps: elsewhere a failed
+        # step cut in half converges statically, cheaper
         r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio,
-                                      damped=lam == self.failed_from)
+                                      damped=self.calm < DAMPED_CALM)
         if rep.converged:
             self.sigma = rep.sigma
-            self.failed_from = None
+            self.calm += 1
         else:
-            self.failed_from = lam
+            self.calm = 0
         return r1, R1, rep
 
     def keep(self, lam, r, R, rep, t, callback):
