@@ -164,8 +164,8 @@ def _node_blocks(blk, nodes, n, dofs, m):
     nodes ``nodes`` (``(k, nn)``), each node's ``m`` rows and columns its
     first ``m`` of ``dofs`` (duplicates summed).  What ``_blocks`` gives,
     built from the node blocks (a sort of ``k nn^2`` keys and a segmented
-    sum) instead of entry by entry: a quarter of its time for the
-    plectoneme's thousands of pairs."""
+    sum) instead of entry by entry, with no pass to sort the indices:
+    2.5 ms against 3.2 ms for 3700 pairs (measured)."""
     k, nn = nodes.shape
     if k == 0:
         return sp.csc_matrix((n * dofs, n * dofs))
@@ -231,11 +231,11 @@ def _pairs(x, s, reach, barrier):
 class NearPairs:
     """The node pairs of a barrier within a reach, from a candidate list
     kept across calls (a Verlet list): the pairs within ``reach + skin``
-    of reference positions, reused while no node has moved more than
-    ``(skin - (reach - listed reach)) / 2`` from them -- then no pair
-    closer than ``reach`` now is missing from it (each of its nodes moved
-    less than half the margin) -- and filtered to ``reach`` by their
-    present distance.  Built anew otherwise.  The Newton iterates of a
+    of reference positions, reused for a reach asked while no node has
+    moved from them by more than half the margin between the list's reach
+    and that reach -- then no pair closer than the reach now is missing
+    from the list -- and filtered to the reach by their present
+    distance.  Built anew otherwise.  The Newton iterates of a
     load step move the nodes by small fractions of the radius, so the
     k-d tree is rebuilt every few iterations instead of twice in each
     (the barrier's energy and the step bound)."""
