@@ -78,14 +78,16 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.barrier import (Barrier, Bend, FrictionLag, NearPairs, Relaxation, Shear,
-                              barrier_work, bend_work, friction_lag, friction_live,
-                              friction_work, lag_change, node_contact, shear_work, step_bound)
+from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, Shear, barrier_work,
+                              bend_work, friction_lag, friction_live, friction_work, lag_change,
+                              node_contact, shear_work, step_bound)
+from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .options import EnergyOptions
 from .ordering import KeptOrdering, Ordered
 from .problem import Problem
+from .rotations import vee
 
 __all__ = ["BarrierResolution", "EnergyOptions", "EnergySolve", "StepReport", "solve_barrier"]
 
@@ -146,10 +148,9 @@ DAMPED_CALM = 2
 #: after a failed static step from the flow, the next is tried once the
 #: proximal force has fallen to this share of the force at that attempt
 DAMPED_RETRY = 0.1
-#: the barrier's pair list (:class:`~skfem_rod.contact.barrier.NearPairs`)
-#: holds the pairs within its reach plus this many radii: kept while no
-#: node moved by half of that
-NEAR_SKIN = 0.5
+#: the barrier's candidate pairs (a :class:`~skfem_rod.contact.search.NeighbourList`)
+#: are kept while no node has moved by more than this many radii
+NEAR_SKIN = 0.25
 
 
 def backward_error(A, x, b):
@@ -192,9 +193,7 @@ def proximal_work(r, R, prox, tangent=True):
     tr = np.trace(B, axis1=1, axis2=2)
     cw = prox.c * prox.length ** 2
     E = 0.5 * prox.c * float(np.sum(dx * dx)) + 0.5 * cw * float(np.sum(3.0 - tr))
-    b = 0.5 * np.stack([B[:, 2, 1] - B[:, 1, 2], B[:, 0, 2] - B[:, 2, 0],
-                        B[:, 1, 0] - B[:, 0, 1]], axis=1)
-    G = np.hstack([prox.c * dx, cw * b]).ravel()
+    G = np.hstack([prox.c * dx, cw * vee(B)]).ravel()
     K = None
     if tangent:
         blk = np.zeros((n, 6, 6))
@@ -294,9 +293,9 @@ class EnergySolve:
             raise ValueError("EnergySolve needs supports along the spatial axes")
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
         self.ordering = KeptOrdering(self.free)    # the factorizations' ordering
-        # the barrier's pairs from a list kept while the nodes move less
-        # than a quarter of the radius (NEAR_SKIN)
-        self.near = NearPairs(NEAR_SKIN * self.radius)
+        # the barrier's pairs from candidates kept while no node moves by
+        # more than NEAR_SKIN radii (a Verlet list, as the contact search's)
+        self.near = NeighbourList(skin=NEAR_SKIN * self.radius)
         #: the anchor of a pseudo-time step while one is solved (_damped)
         self.proximal = None
         # no kink tighter than half the radius (barrier module doc, "Local

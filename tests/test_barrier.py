@@ -85,27 +85,31 @@ def test_pairs_closer_than_the_exclusion_never_touch():
 
 
 def test_the_kept_pair_list_finds_every_pair_the_tree_finds():
-    """:class:`NearPairs` against a fresh k-d tree over a random walk of a
-    coiled rod's nodes (steps of up to a fifth of the skin, some long ones
-    that force a rebuild, reaches of the barrier and of step bounds): the
-    same pairs at every call, and the list rebuilt far less often than
-    called."""
-    from skfem_rod.contact.barrier import NearPairs, _pairs
+    """The barrier's pairs from the contact search's kept candidates
+    (:class:`~skfem_rod.contact.search.NeighbourList`, the ``near`` of
+    :func:`barrier_work` and :func:`step_bound`) against a fresh k-d tree
+    over a random walk of a coiled rod's nodes (steps of a small share of
+    the skin, some long ones that force a rebuild; reaches of the barrier
+    and of step bounds): the same pairs at every call, and the
+    candidates found anew far less often than asked for."""
+    from skfem_rod.contact.barrier import _near_pairs, _pairs
+    from skfem_rod.contact.search import NeighbourList
     rng = np.random.default_rng(11)
     t = np.linspace(0, 6 * np.pi, 300)
     x = np.c_[np.cos(t), np.sin(t), 0.05 * t]              # pitch 0.31: coils in reach
     s = t * np.sqrt(1 + 0.05 ** 2)
     bw = Barrier(distance=0.3, width=0.01, stiffness=1.0, exclusion=0.5)
-    near = NearPairs(0.1)
-    calls = 0
+    near = NeighbourList(skin=0.05)
+    calls = found = 0
     for k in range(200):
         big = k % 50 == 49
-        x = x + rng.standard_normal(x.shape) * (0.2 if big else 0.004)
-        for reach in (bw.distance + bw.width, bw.distance + rng.uniform(0, 0.05)):
-            got, want = near(x, s, reach, bw), _pairs(x, s, reach, bw)
+        x = x + rng.standard_normal(x.shape) * (0.2 if big else 0.002)
+        for reach in (bw.distance + bw.width, bw.distance + rng.uniform(0, 0.01)):
+            got, want = _near_pairs(x, s, reach, bw, near), _pairs(x, s, reach, bw)
             calls += 1
-            assert want.shape[0] > 0
+            found += want.shape[0] > 0
             assert set(map(tuple, got)) == set(map(tuple, want))
+    assert found > calls / 2                   # pairs to find at most calls
     assert 4 <= near.builds < calls / 4
 
 

@@ -228,44 +228,18 @@ def _pairs(x, s, reach, barrier):
     return pr
 
 
-class NearPairs:
-    """The node pairs of a barrier within a reach, from a candidate list
-    kept across calls (a Verlet list): the pairs within ``reach + skin``
-    of reference positions, reused for a reach asked while no node has
-    moved from them by more than half the margin between the list's reach
-    and that reach -- then no pair closer than the reach now is missing
-    from the list -- and filtered to the reach by their present
-    distance.  Built anew otherwise.  The Newton iterates of a
-    load step move the nodes by small fractions of the radius, so the
-    k-d tree is rebuilt every few iterations instead of twice in each
-    (the barrier's energy and the step bound)."""
-
-    def __init__(self, skin):
-        if not (np.isfinite(skin) and skin > 0):
-            raise ValueError(f"NearPairs skin must be a finite number > 0, not {skin!r}")
-        self.skin = float(skin)
-        self.x = None             # the reference positions of the list
-        self.reach = None         # the list's reach
-        self.pairs = None         # (k, 2) candidate pairs
-        self.builds = 0           # lists built
-
-    def __call__(self, x, s, reach, barrier):
-        """What :func:`_pairs` gives for ``(x, s, reach, barrier)``."""
-        # (a list far wider than asked for, after a long step's bound,
-        # costs more to filter than to build)
-        ok = (self.x is not None and self.x.shape == x.shape
-              and reach <= self.reach <= reach + 2 * self.skin)
-        if ok:
-            moved = float(np.sqrt(np.einsum("ij,ij->i", x - self.x, x - self.x).max(
-                initial=0.0)))
-            ok = reach + 2 * moved <= self.reach
-        if not ok:
-            self.x, self.reach = x.copy(), reach + self.skin
-            self.pairs = _pairs(x, s, self.reach, barrier)
-            self.builds += 1
-        pr = self.pairs
-        d = x[pr[:, 0]] - x[pr[:, 1]]
-        return pr[np.einsum("ij,ij->i", d, d) < reach * reach]
+def _near_pairs(x, s, reach, barrier, near=None):
+    """:func:`_pairs` of ``barrier`` within ``reach``; with ``near`` (a
+    :class:`~skfem_rod.contact.search.NeighbourList`) from the candidates
+    it keeps across calls (found with its margin, kept while no node has
+    moved by more than its skin: a superset of the pairs within the
+    reach), filtered to the reach by their present distance."""
+    if near is None:
+        return _pairs(x, s, reach, barrier)
+    i, j = near.pairs(x, reach, lambda margin: tuple(_pairs(x, s, reach + margin, barrier).T))
+    d = x[i] - x[j]
+    keep = np.einsum("ij,ij->i", d, d) < reach * reach
+    return np.column_stack([i[keep], j[keep]])
 
 
 class Handles(NamedTuple):
@@ -521,12 +495,13 @@ def barrier_work(x, s, barrier, hessian=True, dofs=3, directions=None, near=None
     handles, ``directions`` are theirs (:func:`handle_pairs`); their
     moments on the end sections are in ``spin_gradient`` (the Hessian has
     no spin terms: the ends' rotations are held).  ``near``: a
-    :class:`NearPairs` to find the pairs with (default: a k-d tree)."""
+    :class:`~skfem_rod.contact.search.NeighbourList` to find the pairs
+    with (default: a k-d tree at each call)."""
     x = np.asarray(x, float)
     n = x.shape[0]
     bw = barrier
     reach = bw.distance + bw.width
-    pr = (near or _pairs)(x, s, reach, bw)
+    pr = _near_pairs(x, s, reach, bw, near)
     d = x[pr[:, 0]] - x[pr[:, 1]]
     along = np.zeros(pr.shape[0])
     axis = np.zeros((pr.shape[0], 3))          # the handle's e (0: a node pair)
@@ -586,13 +561,13 @@ def step_bound(x, dx, s, barrier, fraction=0.8, directions=None, near=None):
     node also keeps ``D`` from each handle: its side (a cylinder, the
     root counted where it lies beyond the end) and its cap (the end
     node's sphere); exact for handles that do not turn within the step.
-    ``near``: a :class:`NearPairs` to find the pairs with (default: a
-    k-d tree)."""
+    ``near``: a :class:`~skfem_rod.contact.search.NeighbourList` to find
+    the pairs with (default: a k-d tree at each call)."""
     x, dx = np.asarray(x, float), np.asarray(dx, float)
     bw = barrier
     m = float(np.linalg.norm(dx, axis=1).max(initial=0.0))
     reach = bw.distance + 2 * m                        # within reach of D
-    pr = (near or _pairs)(x, s, reach, bw)
+    pr = _near_pairs(x, s, reach, bw, near)
     d0, e = x[pr[:, 0]] - x[pr[:, 1]], dx[pr[:, 0]] - dx[pr[:, 1]]
     t = [_first_root(np.einsum("ij,ij->i", e, e), 2 * np.einsum("ij,ij->i", d0, e),
                      np.einsum("ij,ij->i", d0, d0) - bw.distance ** 2)]
