@@ -186,7 +186,12 @@ def proximal_work(r, R, prox, tangent=True):
     gradient over the dofs (positions, spatial spins), the tangent (the
     gradient's derivative along the spin update ``R <- exp(w) R``: ``c
     l^2 / 2 (tr(B) I - B)``, ``B = R R_k^T``; not symmetric away from the
-    anchor, as the rod's own) block diagonal, or None."""
+    anchor, as the rod's own) block diagonal, or None.  Not
+    :class:`skfem_rod.problem.Viscous` (``Problem.damped``), the viscous
+    term of the gradient flow and the pseudo-dynamics: that one is a
+    residual with no energy beside it and a tangent exact only at the
+    anchor (``c W``), and the energy Newton takes its steps by an Armijo
+    search on the energy with the exact tangent."""
     n = r.shape[0]
     dx = r - prox.r
     B = R @ np.swapaxes(prox.R, 1, 2)

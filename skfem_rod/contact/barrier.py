@@ -129,13 +129,22 @@ class Barrier:
                              f"not {width!r}")
         if not (np.isfinite(force) and force > 0):
             raise ValueError(f"force must be a finite number > 0, not {force!r}")
-        a = float(np.diff(np.sort(np.asarray(s, float))).max(initial=0.0))
+        a = _chain(s)[1]
         ghat = width * radius
         return cls(distance=2 * radius + a ** 2 / (8 * radius), width=ghat,
                    stiffness=force / (HALF_WIDTH_FORCE * ghat),
                    exclusion=np.pi * radius if exclusion is None else float(exclusion),
                    period=None if period is None else float(period),
                    handles=tuple(int(k) for k in handles))
+
+
+def _chain(s):
+    """The nodes at arclengths ``s`` (any order) in arclength order, and
+    their largest spacing ``a`` (what the barrier's distance and the bend
+    and shear limits are set from)."""
+    s = np.asarray(s, float)
+    order = np.argsort(s)
+    return order, float(np.diff(s[order]).max(initial=0.0))
 
 
 def potential(g, width, stiffness):
@@ -292,9 +301,7 @@ class Bend(NamedTuple):
         barrier acting beyond ``onset / radius``; ``kappa`` such that
         ``|b'(width / 2)| sin(limit) = bending * curvature / radius``: a
         node at half the width resists with about that moment."""
-        s = np.asarray(s, float)
-        order = np.argsort(s)
-        a = float(np.diff(s[order]).max(initial=0.0))
+        order, a = _chain(s)
         limit = min(curvature * a / radius, 2.5)
         width = float(np.cos(onset / curvature * limit) - np.cos(limit))
         # |dE/dphi| = |b'(g)| sin(phi) at half the width: the moment
@@ -383,9 +390,7 @@ class Shear(NamedTuple):
         radius + onset``; ``kappa`` such that ``|b'(width / 2)|
         sin(limit) = 2 bending / radius``: a section at half the width
         resists with about that moment."""
-        s = np.asarray(s, float)
-        order = np.argsort(s)
-        a = float(np.diff(s[order]).max(initial=0.0))
+        order, a = _chain(s)
         limit = min(a / radius + angle, 2.0)
         width = float(np.cos(limit - (angle - onset)) - np.cos(limit))
         stiffness = 2 * bending / radius / (HALF_WIDTH_FORCE * width * np.sin(limit))
