@@ -19,8 +19,12 @@ exclusion and the sections from tilting off it: barrier module doc,
 "Handles" and "Local self-contact").
 One step, in plain sight::
 
-    predictor: the last step's increment again (secant), cut by the step
-        bound; the rest of the prescribed motion applied
+    predictor (EnergySolve.predict): frictionless, the quadratic through
+        the last two equilibria with the path's tangent dy/dlam at the
+        last (K_ff dy_f = df_ext/dlam - K q, from the Hessian factorized
+        there for its inertia), the secant where it runs into a contact;
+        with friction the secant (the last step's increment again); cut
+        by the step bound, the rest of the prescribed motion applied
     frictionless: Newton on E to rtol
     friction:
         lag the friction at the step's start (pairs, normal forces, normals;
@@ -42,9 +46,15 @@ One step, in plain sight::
             done when the state is an equilibrium with its own lag (the
                 live Newton takes no iteration): Coulomb's law holds at
                 the state's own normal forces
-        if the live Newton fails: settle the lag to lag_tol instead (its
-            solves to lag_rtol), solve to rtol at it and check it again
-            (Coulomb to lag_tol)
+        if the live Newton fails, or the lag stalls (no static path
+            through the step: the plies slip), by the step's slip= :
+            "cut": the step fails (the load path's first try: it cuts the
+                step, and a half step usually goes through statically);
+            "damped": pseudo-time steps through the slip (_damped: the
+                DAMPED_CALM steps after a failed one);
+            "fallback": settle the lag to lag_tol instead (its solves to
+                lag_rtol), solve to rtol at it and check it again
+                (Coulomb to lag_tol; the static step that ends _damped)
 
     a solved step has converged if the strands' true least distance
         (crossing.min_distance: closest points of element pairs) is at
@@ -133,6 +143,9 @@ LAG_GAIN = 0.9
 #: DAMPED_REST of the force scale the static solve is tried from there
 #: (at most DAMPED_STEPS steps)
 DAMPED_SLIPS = True
+#: what a frictional step does where its static solve finds no path
+#: (EnergySolve.step)
+SLIPS = ("cut", "damped", "fallback")
 SLIP_LIVE = "the live Newton found no equilibrium with its own lag"
 SLIP_FAILURES = ("the friction lag stalled", "the friction lag did not settle",
                  "no equilibrium with its own lag", SLIP_LIVE)
@@ -238,11 +251,33 @@ class StepReport:
     #: solved state (0: a minimum; more: a saddle, e.g. held by symmetry;
     #: None: not known, e.g. with friction)
     negative: Optional[int] = None
+    #: frictionless: the path's tangent ``dy/dlam`` at the solved state
+    #: (dof basis), the next step's predictor (None: not known)
+    rate: Optional[np.ndarray] = None
     #: the out-of-balance force over the dofs where the last solve
     #: converged: the rod's, the barrier's and the friction it held (at the
     #: state's own normal forces where ``live``, at its lag's otherwise);
     #: on the supported dofs the reactions
     out_of_balance: Optional[np.ndarray] = None
+
+
+def predictor(secant, euler, ratio):
+    """A step's predicted increment (dof basis) from the equilibrium
+    ``y_k``: with the last step's increment ``secant = y_k - y_{k-1}``
+    and this step's tangent increment ``euler = dlam y'(y_k)``, the
+    quadratic through ``y_{k-1}`` and ``y_k`` with the slope ``y'`` at
+    ``y_k``, taken ``ratio`` times the last step's size on,
+
+        dy = (1 + ratio) euler - ratio^2 secant;
+
+    with one of them alone, ``euler`` or ``ratio secant``.  Measured on
+    the frictionless barrier plectoneme (docs/contact-solve.md): the
+    quadratic one starts Newton 4-100 times nearer than the secant."""
+    if euler is None:
+        return ratio * secant
+    if secant is None:
+        return euler
+    return (1 + ratio) * euler - ratio ** 2 * secant
 
 
 def _absorb(into, sub, before=False):
@@ -506,19 +541,28 @@ class EnergySolve:
             t *= 0.5
         return None
 
-    def _negative(self, K):
-        """The number of negative eigenvalues of ``K`` on the free dofs
-        (Sylvester: the negative pivots of an LU without off-diagonal
-        pivoting), or None where the LU pivoted off the diagonal or the
-        matrix is singular."""
+    def _solved(self, K, R, rep):
+        """At a solved frictionless state (rotations ``R``, the energy's
+        Hessian ``K``): ``rep.negative``, the number of negative
+        eigenvalues of ``K`` on the free dofs (Sylvester: the negative
+        pivots of an LU without off-diagonal pivoting; None where the LU
+        pivoted off the diagonal or the matrix is singular), and from the
+        same factorization ``rep.rate``, the path's tangent ``dy/dlam``
+        (dof basis): ``K_ff dy_f = df_ext/dlam - K q`` with ``q`` the
+        prescribed motions' rate (None where ``K`` is singular)."""
+        blk = self.ordering.block(K)
         try:
-            lu = self.ordering.factor(self.ordering.block(K), diag_pivot_thresh=0.0,
+            lu = self.ordering.factor(blk, diag_pivot_thresh=0.0,
                                       options=dict(SymmetricMode=True))
         except RuntimeError:
-            return None
-        if not np.array_equal(lu.perm_r, lu.perm_c):
-            return None
-        return int(np.sum(lu.U.diagonal() < 0))
+            return
+        q = self.P.prescribed(1.0)
+        x = lu.solve(blk.to_block((self.P.load_rate(R) - K @ q)[self.free]))
+        if np.all(np.isfinite(x)):
+            rep.rate = q
+            rep.rate[self.free] = blk.from_block(x)
+        if np.array_equal(lu.perm_r, lu.perm_c):
+            rep.negative = int(np.sum(lu.U.diagonal() < 0))
 
     def newton(self, r, R, lam, lag, sigma, rep, rtol=None, live=False):
         """Newton at the fixed ``lag`` to the relative residual ``rtol``
@@ -566,8 +610,8 @@ class EnergySolve:
                     done = rep.floor is not None
                 if done:
                     rep.out_of_balance = G
-                    if lag is None:      # frictionless: the energy's Hessian's inertia
-                        rep.negative = self._negative(K)
+                    if lag is None:      # frictionless: the Hessian's inertia, the path's tangent
+                        self._solved(K, R, rep)
                     return r, R, sigma
                 if rep.iterations >= limit:
                     rep.reason = (f"no convergence in {limit} iterations "
@@ -638,31 +682,23 @@ class EnergySolve:
             rep.iterations += 1
 
     # -- one load step ---------------------------------------------------
-    def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, damped=True):
+    def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, slip="damped",
+             rate=None):
         """From the equilibrium ``(r, R)`` at load factor ``lam`` to
-        ``lam + dlam`` (``previous``: the equilibrium before, for the secant
-        predictor, the increment from it times ``ratio``, this step's size
-        over the last one's).  With friction, where the static solve finds
-        no path through the step (``SLIP_FAILURES``) and ``damped``:
-        pseudo-time steps through it (:meth:`_damped`).  Returns ``(r, R,
-        StepReport)``; on failure the state given back is where the solve
-        stopped (not an equilibrium)."""
-        P, o = self.P, self.options
+        ``lam + dlam``, from the state :meth:`predict` gives (``previous``,
+        ``ratio``, ``rate``: its arguments).  With friction, where the
+        static solve finds no path through the step (``SLIP_FAILURES``: the
+        plies slip), ``slip`` says what follows: ``"cut"`` the step fails
+        there (the load path cuts it: a shorter step usually goes through
+        statically); ``"damped"`` pseudo-time steps through the slip
+        (:meth:`_damped`); ``"fallback"`` the lag settled to ``lag_tol``
+        (Coulomb's law to that).  Returns ``(r, R, StepReport)``; on
+        failure the state given back is where the solve stopped (not an
+        equilibrium)."""
+        if slip not in SLIPS:
+            raise ValueError(f"slip={slip!r}: must be one of {', '.join(map(repr, SLIPS))}")
         rep = StepReport(converged=False, sigma=sigma)
-        p = P.prescribed(dlam)
-        r1 = None
-        if previous is not None:
-            dy = ratio * P.increment(r, R, previous[0], previous[1])
-            a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
-                           self._directions(R), self.near)
-            try:
-                r1, R1 = P.update(r, R, dy, a)
-                if a < 1:
-                    r1, R1 = P.update(r1, R1, p, 1 - a)
-            except ElementRotationError:              # after a snap: no secant
-                r1 = None
-        if r1 is None:
-            r1, R1 = P.update(r, R, p)
+        r1, R1 = self.predict(r, R, dlam, previous, ratio, rate)
         lam1 = lam + dlam
         if not self.mu:
             r1, R1, sigma = self.newton(r1, R1, lam1, None, sigma, rep)
@@ -671,14 +707,48 @@ class EnergySolve:
                 return r1, R1, rep
             rep.sigma = sigma
             return r1, R1, self._checked(r1, rep)
-        damped = DAMPED_SLIPS and damped
-        # with pseudo-time steps to go on with, not the fallback: where the
-        # live solve fails the plies slip (its lag stalls, 10-60 s measured)
-        r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep, fallback=not damped)
-        if rep.converged or not damped or not rep.reason.startswith(SLIP_FAILURES):
+        if slip == "damped" and not DAMPED_SLIPS:
+            slip = "fallback"
+        r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep,
+                                       fallback=slip == "fallback")
+        if rep.converged or slip != "damped" or not rep.reason.startswith(SLIP_FAILURES):
             return r2, R2, rep
         # no static path through the step (a slip): pseudo-time steps
         return self._damped(r, R, r1, R1, lam1, sigma, rep)
+
+    def predict(self, r, R, dlam, previous=None, ratio=1.0, rate=None):
+        """The state a step of ``dlam`` from the equilibrium ``(r, R)``
+        starts Newton from: moved by :func:`predictor`'s increment
+        (``previous``: the equilibrium before, its increment taken
+        ``ratio`` times, this step's size over the last one's; ``rate``:
+        the path's tangent ``dy/dlam`` at ``(r, R)``,
+        :attr:`StepReport.rate` of the step that solved it), cut by the
+        collision bound, then the rest of the prescribed motion applied.
+        Where the quadratic predictor runs into a contact (the bound cuts
+        it), the secant instead: the tangent at a state where node pairs
+        slide past each other misleads (measured, docs/contact-solve.md).
+        No predictor given, or one that would wrap an element's rotation:
+        the prescribed motion alone."""
+        P, o = self.P, self.options
+        p = P.prescribed(dlam)
+        secant = None if previous is None else P.increment(r, R, previous[0], previous[1])
+        euler = None if rate is None else dlam * rate
+        dy = None
+        if secant is not None or euler is not None:
+            dy = predictor(secant, euler, ratio)
+            a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
+                           self._directions(R), self.near)
+            if a < 1 and euler is not None and secant is not None:
+                dy = ratio * secant          # the quadratic runs into a contact
+                a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
+                               self._directions(R), self.near)
+        if dy is not None:
+            try:
+                r1, R1 = P.update(r, R, dy, a)
+                return P.update(r1, R1, p, 1 - a) if a < 1 else (r1, R1)
+            except ElementRotationError:              # after a snap: no secant
+                pass
+        return P.update(r, R, p)
 
     def _frictional(self, r, R, r1, R1, lam1, sigma, rep, fallback=True):
         """The frictional solve of the step from the equilibrium ``(r, R)``
@@ -781,7 +851,7 @@ class EnergySolve:
                 c /= DAMPED_GROWTH        # a longer one
             if force <= rest:
                 # near rest: the static step from here, friction from here
-                r2, R2, fin = self.step(a_r, a_R, lam1, 0.0, None, sigma, damped=False)
+                r2, R2, fin = self.step(a_r, a_R, lam1, 0.0, None, sigma, slip="fallback")
                 _absorb(fin, rep, before=True)
                 fin.damped, fin.slip = rep.damped, first
                 if fin.converged:
@@ -916,13 +986,14 @@ class BarrierStepper:
         self.deadline = Deadline(opts.time_limit)
         self.sigma = 0.0               # the tangent's shift the next step starts from
         self.calm = DAMPED_CALM          # steps converged since one failed
+        self.rate = None                 # (lam, the path's tangent there) of the last solved step
 
     def initial(self, r0, R0):
         """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
         iteration where it is one)."""
         r, R, rep = self.solve.step(r0, R0, 0.0, 0.0, sigma=self.sigma)
         if rep.converged:
-            self.sigma = rep.sigma
+            self.sigma, self.rate = rep.sigma, (0.0, rep.rate)
         return r, R, rep
 
     def advance(self, r, R, lam, lam_new, prev):
@@ -932,13 +1003,20 @@ class BarrierStepper:
         previous, ratio = None, 1.0
         if self.opts.predictor == "secant" and prev is not None and lam != prev[0]:
             previous, ratio = (prev[1], prev[2]), (lam_new - lam) / (lam - prev[0])
-        # pseudo-time steps through a slip (in place of the fallback) only
-        # after a failed step, for DAMPED_CALM steps: elsewhere a failed
-        # step cut in half converges statically, cheaper
+        # the path's tangent where the last solved step left one (frictionless):
+        # the predictor quadratic (a predictor on at all: "secant")
+        rate = None
+        if self.opts.predictor == "secant" and self.rate is not None and self.rate[0] == lam:
+            rate = self.rate[1]
+        # where the static solve finds no path through a slip: the step
+        # fails at once and is cut (a half step goes through statically in
+        # 10-20 iterations where the fallback's lag took 300-700 to stall,
+        # measured); pseudo-time steps through it only in the DAMPED_CALM
+        # steps after a failed one
         r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio,
-                                      damped=self.calm < DAMPED_CALM)
+                                      "damped" if self.calm < DAMPED_CALM else "cut", rate)
         if rep.converged:
-            self.sigma = rep.sigma
+            self.sigma, self.rate = rep.sigma, (lam_new, rep.rate)
             self.calm += 1
         else:
             self.calm = 0

@@ -115,25 +115,27 @@ def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
     (solver.follow_path), grows back after two successes, and with
     min_step above the cut it stops saying where and why.  The two steps
     after a failed one (and only they) may take pseudo-time steps through
-    a slip (``damped``)."""
+    a slip (``slip="damped"``); elsewhere a step that finds no static path
+    fails at once, to be cut (``"cut"``)."""
     rod, eps, _ = _pressed(0.0)
     calls = []
     step = EnergySolve.step
 
-    def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, damped=True):
-        calls.append((round(lam, 12), round(dlam, 12), previous is not None, damped))
+    def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, slip="damped",
+               rate=None):
+        calls.append((round(lam, 12), round(dlam, 12), previous is not None, slip))
         if dlam > 0.3:
             return r, R, StepReport(converged=False, reason="too long a step")
-        return step(self, r, R, lam, dlam, previous, sigma, ratio, damped)
+        return step(self, r, R, lam, dlam, previous, sigma, ratio, slip, rate)
 
     monkeypatch.setattr(EnergySolve, "step", capped)
     result = rod.solve(2, method="barrier", barrier_force=1.0)
     assert result.converged, result.message
     assert np.allclose(result.load_factors, [0, 0.25, 0.5, 0.75, 1.0])
-    assert calls == [(0.0, 0.0, False, True), (0.0, 0.5, False, False),
-                     (0.0, 0.25, False, True), (0.25, 0.25, True, True),
-                     (0.5, 0.5, True, False), (0.5, 0.25, True, True),
-                     (0.75, 0.25, True, True)]
+    assert calls == [(0.0, 0.0, False, "damped"), (0.0, 0.5, False, "cut"),
+                     (0.0, 0.25, False, "damped"), (0.25, 0.25, True, "damped"),
+                     (0.5, 0.5, True, "cut"), (0.5, 0.25, True, "damped"),
+                     (0.75, 0.25, True, "damped")]
     assert sum("too long a step" in line for line in result.log) == 2
     monkeypatch.setattr(EnergySolve, "step", step)
     four = rod.solve(4, method="barrier", barrier_force=1.0)
@@ -284,11 +286,13 @@ def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     well before ``max_lags``.  Taken by pseudo-time steps through the
     slip where the live Newton fails (no fallback), the whole step
     converges: an equilibrium with Coulomb's law at its pairs, the link
-    kept, no overlap."""
+    kept, no overlap.  Failed at once where the live Newton fails
+    (``slip="cut"``, what the load path tries first), the step is cut in
+    two halves, and each goes through statically."""
     from pathlib import Path
 
     from helpers import load_bench
-    from skfem_rod.minimize import LAG_STALL, SLIP_FAILURES, BarrierStepper
+    from skfem_rod.minimize import LAG_STALL, SLIP_FAILURES, SLIP_LIVE, BarrierStepper
     from skfem_rod.options import split_barrier_options
     from skfem_rod.topology import topology
 
@@ -299,24 +303,41 @@ def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     S = stepper.solve
     lam1 = float(d["lam1"])
     dlam = lam1 - float(d["lam0"])
-    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]), damped=False)
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]), slip="fallback")
     assert not rep.converged and "stalled" in rep.reason
     # the first settle, the live solves, then the fallback's lags: at most
     # LAG_STALL + a few more than the least change's lag
     assert LAG_STALL <= rep.lags < S.options.max_lags // 2
+    stalled = rep.iterations
+
+    def check(r, R, rep, lam):
+        """Converged at ``lam``: no overlap, Coulomb's law at its pairs, an
+        equilibrium to rtol, the link the turns applied."""
+        assert rep.converged, rep.reason
+        assert rep.true_distance >= 2 * bp.RADIUS * (1 - S.options.penetration_tol)
+        nc = S.contact(r, R, rep)
+        assert nc.force.size > 0
+        # Coulomb: no friction force above mu times its pair's normal force
+        excess = np.linalg.norm(nc.friction, axis=1) - S.mu * nc.force
+        assert excess.max() <= 1e-9 * S.mu * nc.force.max()
+        # an equilibrium: the out-of-balance force on the free dofs within rtol
+        G = S.residual(r, R, lam, rep.friction) if rep.live else rep.out_of_balance
+        assert np.linalg.norm(G[S.free]) <= S.options.rtol * S.P.force_scale(rep.evaluation)
+        o = np.argsort(rod.mesh.s_nodes)
+        t = topology(r[o], R[o][:, :, 0], t_start=R[o][0][:, 2], t_end=R[o][-1][:, 2])
+        assert t.twist - t.closure_twist + t.writhe == pytest.approx(lam * bp.TURNS, abs=1e-6)
+
     r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]))
-    assert rep.converged, rep.reason
     assert rep.damped > 0 and rep.slip.startswith(SLIP_FAILURES)
-    assert rep.true_distance >= 2 * bp.RADIUS * (1 - S.options.penetration_tol)
-    nc = S.contact(r, R, rep)
-    assert nc.force.size > 0
-    # Coulomb: no friction force above mu times its pair's normal force
-    excess = np.linalg.norm(nc.friction, axis=1) - S.mu * nc.force
-    assert excess.max() <= 1e-9 * S.mu * nc.force.max()
-    # an equilibrium: the out-of-balance force on the free dofs within rtol
-    G = S.residual(r, R, lam1 + dlam, rep.friction) if rep.live else rep.out_of_balance
-    assert np.linalg.norm(G[S.free]) <= S.options.rtol * S.P.force_scale(rep.evaluation)
-    o = np.argsort(rod.mesh.s_nodes)
-    t = topology(r[o], R[o][:, :, 0], t_start=R[o][0][:, 2], t_end=R[o][-1][:, 2])
-    assert t.twist - t.closure_twist + t.writhe == pytest.approx((lam1 + dlam) * bp.TURNS,
-                                                                 abs=1e-6)
+    check(r, R, rep, lam1 + dlam)
+    # what the load path does first: the step fails where the live Newton
+    # does (no fallback), in a fraction of the fallback's iterations, and
+    # is cut; its two halves go through statically
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]), slip="cut")
+    assert not rep.converged and rep.reason.startswith(SLIP_LIVE)
+    assert rep.damped == 0 and rep.fallbacks == 0 and rep.iterations < stalled / 2
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam / 2, (d["r0"], d["R0"]), ratio=0.5,
+                       slip="cut")
+    check(r, R, rep, lam1 + dlam / 2)
+    r, R, rep = S.step(r, R, lam1 + dlam / 2, dlam / 2, (d["r1"], d["R1"]), slip="cut")
+    check(r, R, rep, lam1 + dlam)

@@ -113,19 +113,21 @@ def test_twisted_rod_snaps_into_the_reference_loop():
 
 def _steps(solve, n, settle=False):
     """``n`` equal steps of ``solve`` to load factor 1, each from the last
-    (secant predictor after the first), from the reference or, with
-    ``settle``, from the equilibrium at load factor 0 (as
-    ``Rod.solve(method="barrier")``; the hairpin's arms start inside the
-    barrier's width); the last state and the steps' reports."""
+    (the predictor from the last two equilibria and, with ``settle`` or
+    after the first step, the path's tangent at the last), from the
+    reference or, with ``settle``, from the equilibrium at load factor 0
+    (as ``Rod.solve(method="barrier")``; the hairpin's arms start inside
+    the barrier's width); the last state and the steps' reports."""
     r, R, prev, reps, sigma = solve.rod.r0.copy(), solve.rod.R0.copy(), None, [], 0.0
+    rate = None
     if settle:
         r, R, rep = solve.step(r, R, 0.0, 0.0)
         assert rep.converged, rep.reason
-        sigma = rep.sigma
+        sigma, rate = rep.sigma, rep.rate
     for k in range(n):
-        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma)
+        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma, rate=rate)
         assert rep.converged, rep.reason
-        prev, (r, R), sigma = (r, R), (r1, R1), rep.sigma
+        prev, (r, R), sigma, rate = (r, R), (r1, R1), rep.sigma, rep.rate
         reps.append(rep)
     return r, R, reps
 
@@ -300,3 +302,46 @@ def test_proximal_term_matches_finite_differences_along_the_solves_update():
         col = (proximal_work(*P.update(r, R, e, h), prox, False)[1]
                - proximal_work(*P.update(r, R, e, -h), prox, False)[1]) / (2 * h)
         assert np.abs(col - Kd[:, j]).max() <= 1e-6 * np.abs(Kd).max()
+
+
+def test_quadratic_predictor_is_exact_on_a_quadratic_path():
+    """``predictor`` passes through ``y_{k-1}`` and ``y_k`` with the slope
+    ``y'(y_k)``: on a quadratic path it lands on the path, for any ratio of
+    step sizes; with one of its two inputs it is the secant or Euler."""
+    from skfem_rod.minimize import predictor
+    rng = np.random.default_rng(3)
+    a, b, c = rng.standard_normal((3, 12))
+    y = lambda t: a + b * t + c * t ** 2
+    for h0, h1 in [(0.1, 0.1), (0.1, 0.05), (0.05, 0.15)]:
+        dy = predictor(y(0) - y(-h0), h1 * b, h1 / h0)
+        assert np.abs(y(0) + dy - y(h1)).max() <= 1e-13
+    assert np.array_equal(predictor(y(0) - y(-0.1), None, 0.5), 0.5 * (y(0) - y(-0.1)))
+    assert np.array_equal(predictor(None, 0.1 * b, 0.5), 0.1 * b)
+
+
+@pytest.mark.parametrize("motion", [False, True])
+def test_path_tangent_matches_the_equilibria_beside_it(motion):
+    """The path's tangent a solved frictionless step reports
+    (``StepReport.rate``, from the energy's Hessian at the state: the
+    loads' rate and the prescribed motions' through the supports) is the
+    central difference of the equilibria at ``lam -+ delta`` to O(delta^2),
+    with the hairpin's arms inside the barrier's width (its Hessian in
+    it).  ``motion``: the clamp also turned about the arm's axis by
+    0.2 lam (the prescribed part of the tangent)."""
+    rod, eps, barrier = _hairpin()
+    if motion:
+        rod.supports.clear()
+        rod.pin("start").prescribe_rotation("start", [0.2, 0.0, 0.0])
+    solve = EnergySolve(rod, barrier, eps)
+    r, R, rep = solve.step(rod.r0, rod.R0, 0.0, 0.5)
+    assert rep.converged and rep.active > 0 and rep.rate is not None
+    ends = []
+    for sign in (-1, 1):
+        r1, R1, q = solve.step(r, R, 0.5, sign * 1e-4)
+        assert q.converged, q.reason
+        ends.append((r1, R1))
+    fd = solve.P.increment(*ends[1], *ends[0]) / 2e-4
+    err = np.abs(rep.rate - fd).reshape(-1, 6)
+    scale = np.abs(fd).reshape(-1, 6)
+    assert err[:, :3].max() <= 1e-5 * scale[:, :3].max()
+    assert err[:, 3:].max() <= 1e-5 * scale[:, 3:].max()

@@ -364,7 +364,7 @@ def bend_work(x, bend, hessian=True, dofs=3):
         He = np.zeros((idx.shape[0], 6, 6))
         He[:, :3, :3], He[:, 3:, 3:] = own(t0, g0, P0, n0), own(t1, g1, P1, n1)
         He[:, :3, 3:], He[:, 3:, :3] = H01, H01.transpose(0, 2, 1)
-        Hx = np.einsum("ai,kab,bj->kij", _CHORDS, He, _CHORDS)     # (k, 9, 9)
+        Hx = _CHORDS.T @ He @ _CHORDS                               # (k, 9, 9)
         blk = b2[:, None, None] * df[:, :, None] * df[:, None, :] + b1[:, None, None] * Hx
         H = _blocks(blk, (idx[:, :, None] * dofs + np.arange(3)).reshape(-1, 9), n * dofs)
     return LocalWork(float(b.sum()), grad, H, int(act.sum()))
@@ -836,7 +836,9 @@ def friction_work(x, R, lag, mu, eps_v, hessian=True):
     H = None
     if hessian:
         PJ = (np.eye(3) - nrm[:, :, None] * nrm[:, None, :]) @ _points_jacobian(c_i, c_j)
-        blk = np.einsum("kai,kab,kbj->kij", PJ, _law(u, y, ratio, c, ml), PJ)
+        # PJ^T L PJ by batched products: the three-operand einsum runs
+        # unoptimized, 20 times slower (1.4 ms against 0.07 ms, 600 pairs)
+        blk = np.swapaxes(PJ, 1, 2) @ (_law(u, y, ratio, c, ml) @ PJ)
         _arms_turn(blk, c_i, c_j, phi)
         H = _assemble(blk, i, j, n_nodes)
     return FrictionWork(float(np.sum(ml * f0)), grad, H, -phi, y)
