@@ -41,8 +41,10 @@ One step, in plain sight::
                 a line search on the residual's norm; after LIVE_HALVINGS
                 halvings the update is computed again with the tangent
                 shifted by tau diag|K|, tau from LIVE_SHIFT_START times 10
-                per retry, a tenth of it after an accepted step: pseudo-
-                transient continuation; at most live_iterations)
+                per retry, kept for the next iteration where it was
+                raised, else a tenth of it after a shortened step and 0
+                after a full one: pseudo-transient continuation; at most
+                live_iterations)
             done when the state is an equilibrium with its own lag (the
                 live Newton takes no iteration): Coulomb's law holds at
                 the state's own normal forces
@@ -90,7 +92,7 @@ import scipy.sparse.linalg as spla
 
 from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, Shear, barrier_work,
                               bend_work, friction_lag, friction_live, friction_work, lag_change,
-                              node_contact, shear_work, step_bound)
+                              node_contact, node_spacing, shear_work, step_bound)
 from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
@@ -671,9 +673,12 @@ class EnergySolve:
                 if nc is not None and (not np.isfinite(Et) or nc[2] < Et):
                     rt, Rt, Et, trial = nc
                     rep.curvature_steps += 1
-            if live:
+            if live and not retries:
                 # a full step taken: plain Newton again (its quadratic tail);
-                # a shortened one: a tenth of the shift
+                # a shortened one: a tenth of the shift; a step that needed
+                # the shift raised keeps it for the next (where the plain
+                # update found no descent it would not find one again next
+                # time, measured: half the evaluations of a creeping solve)
                 tau = 0.0 if alpha == 1.0 or tau / 10 < LIVE_SHIFT_START else tau / 10
             else:
                 sigma = used / 10 if used >= o.shift_start else 0.0
@@ -937,8 +942,8 @@ def default_force(problem):
 
 class BarrierResolution(UserWarning):
     """``method="barrier"`` on a mesh whose nodes are too far apart for the
-    contact radius: the nodes' sampling offset ``a^2 / (8 eps)`` exceeds
-    the barrier's width (docs/contact-solve.md)."""
+    contact radius: the nodes' offset (``contact.barrier.node_offset``,
+    ``5 a^2 / (8 eps)``) exceeds the barrier's width (docs/contact-solve.md)."""
 
 
 class BarrierStepper:
@@ -968,16 +973,16 @@ class BarrierStepper:
         barrier = Barrier.for_nodes(rod.mesh.s_nodes, c.radius, width=own.barrier_width,
                                     force=force, exclusion=c.exclusion, period=period,
                                     handles=ends)
-        sampling = barrier.distance - 2 * c.radius       # a^2 / (8 eps): the nodes' offset
+        sampling = barrier.distance - 2 * c.radius       # the nodes' offset (node_offset)
         if sampling > barrier.width:
             warnings.warn(
                 f"method='barrier' with {rod.mesh.n_elements} elements: the node spacing "
-                f"{np.sqrt(8 * c.radius * sampling):.3g} against the contact radius "
+                f"{node_spacing(sampling, c.radius):.3g} against the contact radius "
                 f"{c.radius:.3g} lets crossing strands stand off by up to "
                 f"{sampling / c.radius:.3g} of the radius, more than the barrier's width "
                 f"({barrier.width / c.radius:.3g}), and strands sliding along each other feel "
                 f"the nodes as bumps; refine the mesh to a node spacing below "
-                f"{np.sqrt(8 * c.radius * barrier.width):.3g}", BarrierResolution, stacklevel=4)
+                f"{node_spacing(barrier.width, c.radius):.3g}", BarrierResolution, stacklevel=4)
         self.solve = EnergySolve(bare, barrier, c.radius, mu=c.gamma_T,
                                  eps_v=own.slip_smoothing * c.radius, options=energy,
                                  problem=P)

@@ -17,7 +17,9 @@ The loop, in plain sight::
              pushed off along its unstable mode and relaxed, up to
              MAX_PUSHES times; still unstable: the step fails]
         converged: keep the step, commit it (friction slips start there),
-                   let dt grow back after two successes
+                   let dt grow back after `need` successes in a row
+                   (2; doubled, up to MAX_NEED, each time the first step
+                   after a growth fails, halved each time it converges)
         failed:    halve dt; stop with the converged steps if dt < min_step
 
 Residual, tangent and the configuration update are the
@@ -38,6 +40,12 @@ from .rotations import is_rotation
 from .stability import contact_stiffening, modes
 
 __all__ = ["solve", "SolverOptions", "make_options", "ContactShortfall", "RelaxedShortfall"]
+
+#: a cut step grows back after this many successes in a row; each time the
+#: first step after a growth fails, twice as many (at most MAX_NEED), and
+#: each time it converges, half as many again (at least GROW_AFTER)
+GROW_AFTER = 2
+MAX_NEED = 16
 
 #: pushes off a saddle per step (snap="relax", stability=True): along the
 #: unstable mode, the other way, then each twice as far.  One push was all
@@ -430,6 +438,10 @@ def follow_path(S, r, R, n_steps, times, values, callback):
     lam_of = lambda t: float(np.interp(t, times, values))         # noqa: E731
     nominal = first_step(rod, n_steps, times, values, opts)
     t, dt, streak, prev = 0.0, nominal, 0, None
+    # successes in a row before a cut step grows back; where the grown step
+    # fails again at once (a stretch of the path that takes only shorter
+    # steps: a frictional plectoneme's plies slipping), twice as many
+    need, grown = GROW_AFTER, False
     while t < 1.0 - 1e-14:
         if S.deadline.passed():
             result.finish(False, f"stopped at load factor {lam_of(t):.6g} (pseudo-time "
@@ -444,10 +456,14 @@ def follow_path(S, r, R, n_steps, times, values, callback):
             t, prev, r, R = t_new, (lam, r, R), r1, R1
             S.keep(lam_new, r, R, rep, t, callback)
             streak += 1
-            if streak >= 2:          # grow back only after two successes in a row
-                dt = min(dt * opts.grow, nominal)
+            if grown:                # the grown step went through
+                need, grown = max(GROW_AFTER, need // 2), False
+            if streak >= need and dt < nominal:
+                dt, grown = min(dt * opts.grow, nominal), True
             continue
-        streak = 0
+        if grown:                    # the grown step failed at once
+            need = min(2 * need, MAX_NEED)
+        streak, grown = 0, False
         result.log.append(f"step to lam={lam_new:.6g} (t={t_new:.6g}) failed: "
                           f"{rep.reason}; cutting the step")
         dt = 0.5 * h

@@ -236,18 +236,19 @@ def test_the_plectoneme_demo_snaps_into_a_loop_and_keeps_its_link(tmp_path):
 
 
 def test_a_mesh_too_coarse_for_the_barrier_is_warned_about():
-    """The nodes' sampling offset a^2 / (8 eps) against the barrier's
-    width: the plectoneme's 40 elements (a = 0.33 eps, offset 0.014 eps)
-    are fine; the hairpin's 24 (a = 0.6 eps, 0.045 eps) are not."""
+    """The nodes' offset 3 a^2 / (8 eps) (``barrier.node_offset``) against
+    the barrier's width: the plectoneme's 70 elements (a = 0.19 eps, offset
+    0.014 eps) are fine; the hairpin's 24 (a = 0.6 eps, 0.136 eps) are
+    not."""
     from skfem_rod.minimize import BarrierResolution
     import warnings
     from helpers import load_demo
-    fine = load_demo("plectoneme").build(40, turns=0.01)
+    fine = load_demo("plectoneme").build(70, turns=0.01)
     with warnings.catch_warnings():
         warnings.simplefilter("error", BarrierResolution)
         assert fine.solve(1, method="barrier").converged
     rod, eps, _ = _pressed(0.0)
-    with pytest.warns(BarrierResolution, match="0.0451 of the radius.*below 0.02$"):
+    with pytest.warns(BarrierResolution, match="0.136 of the radius.*below 0.0115$"):
         rod.solve(1, method="barrier", barrier_force=1.0)
 
 
@@ -275,15 +276,47 @@ def test_a_reference_bent_tighter_than_half_the_radius_is_refused():
         assert rod.solve(1, method="barrier").converged
 
 
+def test_a_step_that_fails_again_when_grown_back_waits_longer(monkeypatch):
+    """Where every step longer than a tenth of the path fails, the load
+    path (solver.follow_path) cuts the step to 1/16 and grows it back after
+    2, then 4, then 8 successes: the grown step failing at once doubles
+    the successes it waits for (``GROW_AFTER``, ``MAX_NEED``), so that a
+    stretch of the path that takes only short steps is not tried with
+    long ones every third step (7 such failures instead of 3 here)."""
+    from skfem_rod.solver import GROW_AFTER
+    rod, _, _ = _pressed(0.0)
+    calls = []
+    step = EnergySolve.step
+
+    def capped(self, r, R, lam, dlam, *args, **kwargs):
+        if dlam > 0.1:
+            calls.append((round(dlam, 12), False))
+            return r, R, StepReport(converged=False, reason="too long a step")
+        calls.append((round(dlam, 12), True))
+        return step(self, r, R, lam, dlam, *args, **kwargs)
+
+    monkeypatch.setattr(EnergySolve, "step", capped)
+    result = rod.solve(1, method="barrier", barrier_force=1.0)
+    assert result.converged, result.message
+    assert np.allclose(np.diff(result.load_factors), 1 / 16)
+    outcomes = [ok for dlam, ok in calls[1:] if dlam > 0]        # after step 0
+    # the first cuts: 1, 1/2, 1/4, 1/8 fail; then runs of successes between
+    # the grown steps' failures
+    assert outcomes[:4] == [False] * 4
+    runs = [len(run) for run in "".join("s" if ok else "f"
+                                       for ok in outcomes[4:]).split("f")]
+    assert runs == [GROW_AFTER, 2 * GROW_AFTER, 4 * GROW_AFTER, 2]
+
+
 @pytest.mark.slow
 def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     """The 100-element frictional barrier plectoneme (gamma_T = 0.3,
-    handles) at 5.9375 turns, saved by ``benchmarks/plectoneme_state.py
-    100 95 ... 0.3 handles``: its next step of 1/16 turn slips, the live
+    handles) at 7.625 turns, saved by ``benchmarks/plectoneme_state.py
+    100 123 ... 0.3 handles``: its next step of 1/16 turn slips, the live
     Newton fails, and the fallback's lag does not contract (changes of
     0.2-1 of the largest normal force, lag after lag; before the stall
-    test all 60 lags ran, 33 s).  The static step fails naming the stall,
-    well before ``max_lags``.  Taken by pseudo-time steps through the
+    test all 60 lags ran).  The static step fails naming the stall,
+    well before ``max_lags`` (15 lags, 800 iterations).  Taken by pseudo-time steps through the
     slip where the live Newton fails (no fallback), the whole step
     converges: an equilibrium with Coulomb's law at its pairs, the link
     kept, no overlap.  Failed at once where the live Newton fails

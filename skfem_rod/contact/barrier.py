@@ -22,16 +22,28 @@ no projection jump and no multiplier update.
 straight strands cross at distance ``2 eps``, the nearest nodes can be
 farther apart by up to ``a^2 / (8 eps)`` (both strands' nodes half a
 spacing away from the crossing; ``a^2 / (16 eps)`` for parallel strands).
-The node spheres touch at ``D = 2 eps + a^2 / (8 eps)``
-(:meth:`Barrier.for_nodes`): the centrelines keep ``2 eps`` at any
-crossing angle where the strands are straight between nodes, and stand
-off by up to that much where the nodes are in step (2.2e-3 eps at 100
-elements of the plectoneme, 5.6e-4 eps at 200; a tenth of the radius at
-36 elements of a rod ten times longer, too coarse for this model: the
-node spacing must stay well below the radius).  Where strands curve
-between nodes, the true distance can dip by the sag, at most
-``a^2 / (8 eps)`` again; the callers measure it
-(:func:`skfem_rod.contact.crossing.min_distance`).
+Where a strand curves between nodes (curvature ``k``) it sags towards
+the other by ``k a^2 / 8`` below the chord; a tube of radius ``eps``
+bends no tighter than ``1 / eps`` without overlapping itself
+(``TUBE_CURVATURE``).  The node spheres touch at
+
+    D = 2 eps + 3 a^2 / (8 eps)        (``SAMPLING = 3``, :func:`node_offset`)
+
+the crossing offset and the sag of both strands at that curvature
+(:meth:`Barrier.for_nodes`): the centrelines keep ``2 eps`` to second
+order in ``a / eps`` at any crossing angle wherever the strands bend no
+tighter than a tube can (tests/test_barrier.py measures it on densely
+sampled arcs), and stand off by up to ``D - 2 eps`` where they are straight
+and the nodes in step (6.7e-3 eps at 100 elements of the plectoneme,
+1.7e-3 eps at 200; the node spacing must stay well below the radius).
+Before 2026-12-01 D held the crossing offset alone; the 100-element
+frictional plectoneme then reached a state near the ends whose strands,
+bent to 0.88 and 0.52 / eps towards each other, overlapped by 1.02e-3
+eps between nodes, and no step from it converged.  Tighter bends (the
+bend barrier allows 2 / eps against kinks) can still dip below
+``2 eps``; the callers measure the true distance
+(:func:`skfem_rod.contact.crossing.min_distance`) and refuse such a
+step.
 
 *Width and stiffness.*  ``g_hat`` (default 0.02 eps) bounds how far apart
 touching strands stand; ``kappa`` is set so that a pair at ``g_hat / 2``
@@ -85,6 +97,27 @@ from ..rotations import cross, hat
 
 #: ``|b'(g_hat / 2)| / (kappa g_hat)``: the force of a pair at half the width
 HALF_WIDTH_FORCE = np.log(2.0) + 0.5
+#: the largest curvature (times the radius) that the bend barrier lets the
+#: nodes' polyline take (:meth:`Bend.for_rod`): a guard against kinks
+BEND_CURVATURE = 2.0
+#: the largest curvature (times the radius) of a tube of radius eps that
+#: does not overlap itself locally: the curvature the contact distance
+#: allows for between nodes
+TUBE_CURVATURE = 1.0
+#: the node spheres' distance ``D = 2 eps + SAMPLING a^2 / (8 eps)``: the
+#: crossing offset (1) and the sag of both strands at TUBE_CURVATURE
+#: (module doc, "Contact distance")
+SAMPLING = 1.0 + 2.0 * TUBE_CURVATURE
+
+
+def node_offset(a, radius):
+    """``D - 2 eps`` for nodes ``a`` apart, contact radius ``radius``."""
+    return SAMPLING * a ** 2 / (8 * radius)
+
+
+def node_spacing(offset, radius):
+    """The node spacing whose :func:`node_offset` is ``offset``."""
+    return float(np.sqrt(8 * radius * offset / SAMPLING))
 
 
 @dataclass(frozen=True)
@@ -115,7 +148,7 @@ class Barrier:
     def for_nodes(cls, s, radius, width=0.02, force=1.0, exclusion=None, period=None,
                   handles=()):
         """The barrier for nodes at arclengths ``s`` (any order) of a rod of
-        contact radius ``radius``: ``D = 2 radius + a^2 / (8 radius)``
+        contact radius ``radius``: ``D = 2 radius +`` :func:`node_offset`
         with ``a`` the largest node spacing, ``g_hat = width radius``, the
         stiffness from ``force`` (module doc), ``exclusion`` default
         ``pi radius`` (:mod:`.search`); ``period``: a closed rod's length
@@ -131,7 +164,7 @@ class Barrier:
             raise ValueError(f"force must be a finite number > 0, not {force!r}")
         a = _chain(s)[1]
         ghat = width * radius
-        return cls(distance=2 * radius + a ** 2 / (8 * radius), width=ghat,
+        return cls(distance=2 * radius + node_offset(a, radius), width=ghat,
                    stiffness=force / (HALF_WIDTH_FORCE * ghat),
                    exclusion=np.pi * radius if exclusion is None else float(exclusion),
                    period=None if period is None else float(period),
@@ -294,7 +327,7 @@ class Bend(NamedTuple):
     stiffness: float          # kappa
 
     @classmethod
-    def for_rod(cls, s, radius, bending, curvature=2.0, onset=1.5, closed=False):
+    def for_rod(cls, s, radius, bending, curvature=BEND_CURVATURE, onset=1.5, closed=False):
         """For nodes at arclengths ``s`` of a rod of radius ``radius``
         and bending stiffness ``bending``: the limit angle ``curvature /
         radius`` times the largest node spacing (at most 2.5 rad), the
