@@ -97,7 +97,9 @@ class SolverOptions:
         strain, and the next step converges; see docs/theory.md.)
     min_step : smallest load-factor step before the solve gives up.
     max_rotation_step : largest prescribed end rotation per step (rad).
-    grow : factor by which a cut step grows back after a success.
+    grow : factor by which a cut step grows back after two successes in a
+        row (twice as many each time the grown step failed at once, up to
+        16; half as many again each time it went through).
     snap : what to do when a load step fails: ``"cut"`` (default) halves
         the step until ``min_step``; ``"relax"`` first tries the gradient
         flow (proximal continuation, :mod:`skfem_rod.relax`) at the step's
@@ -199,7 +201,8 @@ class SolverOptions:
                                   "update")
     min_step: float = _pos(1e-6, "smallest pseudo-time step before the solve stops")
     max_rotation_step: float = _pos(0.5 * np.pi, "largest prescribed rotation per step (rad)")
-    grow: float = _opt(2.0, "number", "growth factor of a cut step after two successes",
+    grow: float = _opt(2.0, "number", "growth factor of a cut step after two successes "
+                       "in a row (twice as many after a grown step failed)",
                        lo=1.0, lo_open=False)
     snap: str = _opt("cut", "choice", "when a step fails: cut it, or first relax by a "
                                       "gradient flow through the snap (skfem_rod.relax)",
@@ -328,6 +331,8 @@ class BarrierOptions:
 
 #: the load path's options (:class:`SolverOptions`) that
 #: ``Rod.solve(method="barrier")`` takes; its predictor defaults to the secant
+#: (made quadratic with the path's tangent where that is known: frictionless,
+#: :func:`skfem_rod.minimize.predictor`)
 BARRIER_PATH = ("min_step", "grow", "max_rotation_step", "time_limit", "predictor")
 
 
