@@ -696,10 +696,12 @@ class EnergySolve:
 
     # -- one load step ---------------------------------------------------
     def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, slip="damped",
-             rate=None):
+             rate=None, stable=False):
         """From the equilibrium ``(r, R)`` at load factor ``lam`` to
         ``lam + dlam``, from the state :meth:`predict` gives (``previous``,
-        ``ratio``, ``rate``: its arguments).  With friction, where the
+        ``ratio``, ``rate``: its arguments; ``stable``: ``(r, R)`` is a
+        minimum of the energy, :attr:`StepReport.negative` 0, see
+        :meth:`_frictionless`).  With friction, where the
         static solve finds no path through the step (``SLIP_FAILURES``: the
         plies slip), ``slip`` says what follows: ``"cut"`` the step fails
         there (the load path cuts it: a shorter step usually goes through
@@ -710,16 +712,11 @@ class EnergySolve:
         equilibrium)."""
         if slip not in SLIPS:
             raise ValueError(f"slip={slip!r}: must be one of {', '.join(map(repr, SLIPS))}")
+        if not self.mu:
+            return self._frictionless(r, R, lam, dlam, previous, sigma, ratio, rate, stable)
         rep = StepReport(converged=False, sigma=sigma)
         r1, R1 = self.predict(r, R, dlam, previous, ratio, rate)
         lam1 = lam + dlam
-        if not self.mu:
-            r1, R1, sigma = self.newton(r1, R1, lam1, None, sigma, rep)
-            rep.lags = 1
-            if rep.reason:
-                return r1, R1, rep
-            rep.sigma = sigma
-            return r1, R1, self._checked(r1, rep)
         if slip == "damped" and not DAMPED_SLIPS:
             slip = "fallback"
         r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep,
@@ -728,6 +725,37 @@ class EnergySolve:
             return r2, R2, rep
         # no static path through the step (a slip): pseudo-time steps
         return self._damped(r, R, r1, R1, lam1, sigma, rep)
+
+    def _frictionless(self, r, R, lam, dlam, previous, sigma, ratio, rate, stable):
+        """The frictionless step of :meth:`step`: Newton on the energy from
+        the predicted state.  Where the step starts from a minimum
+        (``stable``) and the tangent's prediction (``rate``) leads Newton
+        to a saddle, stability was lost within the step, and the predictor
+        followed the path's branch on past it: the step is solved again
+        from the secant's start, or else the plain one, from which the
+        energy's descent leaves the branch for a minimum where there is one
+        (docs/contact-solve.md); the report counts every solve tried, the
+        one whose state it returns last."""
+        rep = StepReport(converged=False, sigma=sigma)
+        r1, R1 = self.predict(r, R, dlam, previous, ratio, rate)
+        r2, R2, sig = self.newton(r1, R1, lam + dlam, None, sigma, rep)
+        rep.lags = 1
+        if rep.reason:
+            return r2, R2, rep
+        rep.sigma = sig
+        tried, starts = [], ()
+        if stable and rep.negative and rate is not None:
+            starts = (None,) if previous is None else (previous, None)
+        for start in starts:
+            r3, R3, other = self._frictionless(r, R, lam, dlam, start, sigma, ratio, None, False)
+            if other.converged and not other.negative:
+                for t in reversed([rep] + tried):
+                    _absorb(other, t, before=True)
+                return r3, R3, other
+            tried.append(other)
+        for t in reversed(tried):
+            _absorb(rep, t, before=True)
+        return r2, R2, self._checked(r2, rep)
 
     def predict(self, r, R, dlam, previous=None, ratio=1.0, rate=None):
         """The state a step of ``dlam`` from the equilibrium ``(r, R)``
@@ -999,14 +1027,16 @@ class BarrierStepper:
         self.deadline = Deadline(opts.time_limit)
         self.sigma = 0.0               # the tangent's shift the next step starts from
         self.calm = DAMPED_CALM          # steps converged since one failed
-        self.rate = None                 # (lam, the path's tangent there) of the last solved step
+        #: (lam, the path's tangent there, its negative eigenvalues) of the
+        #: last solved step
+        self.rate = None
 
     def initial(self, r0, R0):
         """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
         iteration where it is one)."""
         r, R, rep = self.solve.step(r0, R0, 0.0, 0.0, sigma=self.sigma)
         if rep.converged:
-            self.sigma, self.rate = rep.sigma, (0.0, rep.rate)
+            self.sigma, self.rate = rep.sigma, (0.0, rep.rate, rep.negative)
         return r, R, rep
 
     def advance(self, r, R, lam, lam_new, prev):
@@ -1018,18 +1048,19 @@ class BarrierStepper:
             previous, ratio = (prev[1], prev[2]), (lam_new - lam) / (lam - prev[0])
         # the path's tangent where the last solved step left one (frictionless):
         # the predictor quadratic (a predictor on at all: "secant")
-        rate = None
+        rate, stable = None, False
         if self.opts.predictor == "secant" and self.rate is not None and self.rate[0] == lam:
-            rate = self.rate[1]
+            rate, stable = self.rate[1], self.rate[2] == 0
         # where the static solve finds no path through a slip: the step
         # fails at once and is cut (a half step goes through statically in
         # 10-20 iterations where the fallback's lag took 300-700 to stall,
         # measured); pseudo-time steps through it only in the DAMPED_CALM
         # steps after a failed one
         r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio,
-                                      "damped" if self.calm < DAMPED_CALM else "cut", rate)
+                                      "damped" if self.calm < DAMPED_CALM else "cut", rate,
+                                      stable)
         if rep.converged:
-            self.sigma, self.rate = rep.sigma, (lam_new, rep.rate)
+            self.sigma, self.rate = rep.sigma, (lam_new, rep.rate, rep.negative)
             self.calm += 1
         else:
             self.calm = 0

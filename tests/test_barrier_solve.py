@@ -122,11 +122,11 @@ def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
     step = EnergySolve.step
 
     def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, slip="damped",
-               rate=None):
+               rate=None, stable=False):
         calls.append((round(lam, 12), round(dlam, 12), previous is not None, slip))
         if dlam > 0.3:
             return r, R, StepReport(converged=False, reason="too long a step")
-        return step(self, r, R, lam, dlam, previous, sigma, ratio, slip, rate)
+        return step(self, r, R, lam, dlam, previous, sigma, ratio, slip, rate, stable)
 
     monkeypatch.setattr(EnergySolve, "step", capped)
     result = rod.solve(2, method="barrier", barrier_force=1.0)
@@ -374,3 +374,41 @@ def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     check(r, R, rep, lam1 + dlam / 2)
     r, R, rep = S.step(r, R, lam1 + dlam / 2, dlam / 2, (d["r1"], d["R1"]), slip="cut")
     check(r, R, rep, lam1 + dlam)
+
+
+@pytest.mark.slow
+def test_a_step_past_a_loss_of_stability_ends_on_a_minimum():
+    """The 150-element frictionless barrier plectoneme (handles) at 5.25
+    turns, saved by ``benchmarks/plectoneme_state.py 150 84
+    tests/data/plectoneme_saddle.npz 0.0 handles``: a minimum, whose path
+    loses its stability within the next step of 1/16 turn.  From the
+    quadratic predictor (the path's tangent) Newton converges in a few
+    iterations to the branch's continuation, a saddle of the energy (one
+    negative eigenvalue); the step then takes the secant's start instead,
+    from which the energy's descent reaches a minimum: the step ends on
+    it, its report counting both solves."""
+    from pathlib import Path
+
+    from helpers import load_bench
+    from skfem_rod.minimize import BarrierStepper
+    from skfem_rod.options import split_barrier_options
+
+    bp = load_bench("bench_plectoneme")
+    d = np.load(Path(__file__).with_name("data") / "plectoneme_saddle.npz")
+    rod = bp.build(150, 0.0)
+    S = BarrierStepper(rod, *split_barrier_options(dict(barrier_force=1.0, handles=True))).solve
+    lam1 = float(d["lam1"])
+    dlam = lam1 - float(d["lam0"])
+    r, R, at = S.step(d["r1"], d["R1"], lam1, 0.0)         # the saved state, re-solved
+    assert at.converged and at.iterations == 0 and at.negative == 0
+    # Newton from the tangent's prediction alone: a saddle
+    alone = StepReport(converged=False)
+    r1, R1 = S.predict(r, R, dlam, (d["r0"], d["R0"]), rate=at.rate)
+    S.newton(r1, R1, lam1 + dlam, None, 0.0, alone)
+    assert not alone.reason and alone.negative == 1
+    # the step: a minimum, both solves counted
+    r2, R2, rep = S.step(r, R, lam1, dlam, (d["r0"], d["R0"]), rate=at.rate, stable=True)
+    assert rep.converged, rep.reason
+    assert rep.negative == 0
+    assert rep.iterations > alone.iterations and len(rep.solves) == 2
+    assert rep.true_distance >= 2 * bp.RADIUS

@@ -119,15 +119,16 @@ def _steps(solve, n, settle=False):
     (as ``Rod.solve(method="barrier")``; the hairpin's arms start inside
     the barrier's width); the last state and the steps' reports."""
     r, R, prev, reps, sigma = solve.rod.r0.copy(), solve.rod.R0.copy(), None, [], 0.0
-    rate = None
+    rate, stable = None, False
     if settle:
         r, R, rep = solve.step(r, R, 0.0, 0.0)
         assert rep.converged, rep.reason
-        sigma, rate = rep.sigma, rep.rate
+        sigma, rate, stable = rep.sigma, rep.rate, rep.negative == 0
     for k in range(n):
-        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma, rate=rate)
+        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma, rate=rate, stable=stable)
         assert rep.converged, rep.reason
-        prev, (r, R), sigma, rate = (r, R), (r1, R1), rep.sigma, rep.rate
+        prev, (r, R), sigma = (r, R), (r1, R1), rep.sigma
+        rate, stable = rep.rate, rep.negative == 0
         reps.append(rep)
     return r, R, reps
 
