@@ -376,6 +376,13 @@ class EnergySolve:
             return None
         return self.handle_sign[:, None] * R[list(self.barrier.handles)][:, :, 2]
 
+    def _bound(self, r, R, dy):
+        """The collision bound of the update ``dy`` (dof basis) from ``(r,
+        R)``: :func:`~skfem_rod.contact.barrier.step_bound` of its node
+        moves, with the handles' directions at ``R``."""
+        return step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier,
+                          self.options.fraction, self._directions(R), self.near)
+
     # -- the energy ------------------------------------------------------
     def _parts(self, r, R, lam, lag, tangent, live=False):
         ev = self.P.evaluate(r, R, lam, tangent=tangent)
@@ -528,8 +535,7 @@ class EnergySolve:
         step *= scale
         slope = float(g @ step[free])
         quad = curv * float(step[free] @ (d * step[free]))
-        t = min(1.0, step_bound(r, step.reshape(-1, 6)[:, :3], self.s, self.barrier,
-                                o.fraction, self._directions(R), self.near))
+        t = min(1.0, self._bound(r, R, step))
         for halving in range(CURVATURE_HALVINGS):
             if -(t * slope + 0.5 * t * t * quad) < CURVATURE_GAIN * newton_drop:
                 return None
@@ -629,8 +635,7 @@ class EnergySolve:
             d6 = dy.reshape(-1, 6)
             alpha = min(1.0,
                         o.max_spin / max(float(np.linalg.norm(d6[:, 3:], axis=1).max()), 1e-300),
-                        step_bound(r, d6[:, :3], self.s, self.barrier, o.fraction,
-                                   self._directions(R), self.near))
+                        self._bound(r, R, dy))
             for halving in range(LIVE_HALVINGS if live else o.halvings):
                 try:
                     rt, Rt = P.update(r, R, dy, alpha)
@@ -770,19 +775,17 @@ class EnergySolve:
         slide past each other misleads (measured, docs/contact-solve.md).
         No predictor given, or one that would wrap an element's rotation:
         the prescribed motion alone."""
-        P, o = self.P, self.options
+        P = self.P
         p = P.prescribed(dlam)
         secant = None if previous is None else P.increment(r, R, previous[0], previous[1])
         euler = None if rate is None else dlam * rate
         dy = None
         if secant is not None or euler is not None:
             dy = predictor(secant, euler, ratio)
-            a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
-                           self._directions(R), self.near)
+            a = self._bound(r, R, dy)
             if a < 1 and euler is not None and secant is not None:
                 dy = ratio * secant          # the quadratic runs into a contact
-                a = step_bound(r, dy.reshape(-1, 6)[:, :3], self.s, self.barrier, o.fraction,
-                               self._directions(R), self.near)
+                a = self._bound(r, R, dy)
         if dy is not None:
             try:
                 r1, R1 = P.update(r, R, dy, a)
@@ -1027,16 +1030,16 @@ class BarrierStepper:
         self.deadline = Deadline(opts.time_limit)
         self.sigma = 0.0               # the tangent's shift the next step starts from
         self.calm = DAMPED_CALM          # steps converged since one failed
-        #: (lam, the path's tangent there, its negative eigenvalues) of the
-        #: last solved step
-        self.rate = None
+        #: the load factor and the report of the last solved step (the
+        #: path's tangent and the inertia there: the next step's predictor)
+        self.solved_at, self.solved = None, None
 
     def initial(self, r0, R0):
         """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
         iteration where it is one)."""
         r, R, rep = self.solve.step(r0, R0, 0.0, 0.0, sigma=self.sigma)
         if rep.converged:
-            self.sigma, self.rate = rep.sigma, (0.0, rep.rate, rep.negative)
+            self.sigma, self.solved_at, self.solved = rep.sigma, 0.0, rep
         return r, R, rep
 
     def advance(self, r, R, lam, lam_new, prev):
@@ -1049,8 +1052,8 @@ class BarrierStepper:
         # the path's tangent where the last solved step left one (frictionless):
         # the predictor quadratic (a predictor on at all: "secant")
         rate, stable = None, False
-        if self.opts.predictor == "secant" and self.rate is not None and self.rate[0] == lam:
-            rate, stable = self.rate[1], self.rate[2] == 0
+        if self.opts.predictor == "secant" and self.solved_at == lam:
+            rate, stable = self.solved.rate, self.solved.negative == 0
         # where the static solve finds no path through a slip: the step
         # fails at once and is cut (a half step goes through statically in
         # 10-20 iterations where the fallback's lag took 300-700 to stall,
@@ -1060,7 +1063,7 @@ class BarrierStepper:
                                       "damped" if self.calm < DAMPED_CALM else "cut", rate,
                                       stable)
         if rep.converged:
-            self.sigma, self.rate = rep.sigma, (lam_new, rep.rate, rep.negative)
+            self.sigma, self.solved_at, self.solved = rep.sigma, lam_new, rep
             self.calm += 1
         else:
             self.calm = 0
