@@ -91,9 +91,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .contact.barrier import (Barrier, Bend, FrictionLag, Relaxation, Shear, barrier_work,
-                              bend_work, friction_lag, friction_live, friction_work, lag_change,
-                              node_contact, node_spacing, shear_work, step_bound)
+from .contact.barrier import (Barrier, Bend, FrictionLag, NodePattern, Relaxation, Shear,
+                              barrier_work, bend_work, friction_lag, friction_live,
+                              friction_work, lag_change, node_contact, node_spacing,
+                              shear_work, step_bound)
 from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
@@ -337,8 +338,12 @@ class EnergySolve:
         self.P, self.free, self.s, self.x0 = P, P.free, rod.mesh.s_nodes, rod.r0.copy()
         self.ordering = KeptOrdering(self.free)    # the factorizations' ordering
         # the barrier's pairs from candidates kept while no node moves by
-        # more than NEAR_SKIN radii (a Verlet list, as the contact search's)
-        self.near = NeighbourList(skin=NEAR_SKIN * self.radius)
+        # more than NEAR_SKIN radii (a Verlet list, as the contact search's;
+        # of node pairs: a margin of twice the skin)
+        self.near = NeighbourList(skin=NEAR_SKIN * self.radius, spread=1.0)
+        # the barrier's and the friction's Hessian patterns, kept while
+        # their pairs recur (the friction's: the lag's, fixed for a solve)
+        self.patterns = (NodePattern(), NodePattern())
         #: the anchor of a pseudo-time step while one is solved (_damped)
         self.proximal = None
         # no kink tighter than half the radius (barrier module doc, "Local
@@ -386,12 +391,13 @@ class EnergySolve:
     # -- the energy ------------------------------------------------------
     def _parts(self, r, R, lam, lag, tangent, live=False):
         ev = self.P.evaluate(r, R, lam, tangent=tangent)
+        bp, fp = self.patterns
         bw = barrier_work(r, self.s, self.barrier, hessian=tangent, dofs=6,
-                          directions=self._directions(R), near=self.near)
+                          directions=self._directions(R), near=self.near, pattern=bp)
         fw = None
         if lag is not None:
-            fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent) if live
-                  else friction_work(r, R, lag, self.mu, self.eps_v, tangent))
+            fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent, fp)
+                  if live else friction_work(r, R, lag, self.mu, self.eps_v, tangent, fp))
         kw = bend_work(r, self.bend, hessian=tangent, dofs=6)
         sw = shear_work(r, R, self.shear, hessian=tangent)
         f = ev.external.reshape(-1, 6)

@@ -85,14 +85,17 @@ def test_pairs_closer_than_the_exclusion_never_touch():
     assert node_pairs(x, s, 0.07, exclusion=1.0).shape == (0, 2)
 
 
-def test_the_kept_pair_list_finds_every_pair_the_tree_finds():
+@pytest.mark.parametrize("spread", [None, 1.0])
+def test_the_kept_pair_list_finds_every_pair_the_tree_finds(spread):
     """The barrier's pairs from the contact search's kept candidates
     (:class:`~skfem_rod.contact.search.NeighbourList`, the ``near`` of
     :func:`barrier_work` and :func:`step_bound`) against a fresh k-d tree
     over a random walk of a coiled rod's nodes (steps of a small share of
     the skin, some long ones that force a rebuild; reaches of the barrier
     and of step bounds): the same pairs at every call, and the
-    candidates found anew far less often than asked for."""
+    candidates found anew far less often than asked for; with the
+    margin of the contact search's curve points (``spread`` None) and
+    the node pairs' own, twice the skin (``spread`` 1, the solve's)."""
     from skfem_rod.contact.barrier import _near_pairs, _pairs
     from skfem_rod.contact.search import NeighbourList
     rng = np.random.default_rng(11)
@@ -100,7 +103,8 @@ def test_the_kept_pair_list_finds_every_pair_the_tree_finds():
     x = np.c_[np.cos(t), np.sin(t), 0.05 * t]              # pitch 0.31: coils in reach
     s = t * np.sqrt(1 + 0.05 ** 2)
     bw = Barrier(distance=0.3, width=0.01, stiffness=1.0, exclusion=0.5)
-    near = NeighbourList(skin=0.05)
+    near = NeighbourList(skin=0.05) if spread is None else NeighbourList(skin=0.05,
+                                                                         spread=spread)
     calls = found = 0
     for k in range(200):
         big = k % 50 == 49
@@ -112,6 +116,59 @@ def test_the_kept_pair_list_finds_every_pair_the_tree_finds():
             assert set(map(tuple, got)) == set(map(tuple, want))
     assert found > calls / 2                   # pairs to find at most calls
     assert 4 <= near.builds < calls / 4
+
+
+def test_the_kept_pair_list_of_nodes_finds_a_pair_closing_in_by_almost_the_skin():
+    """Node pairs with the margin twice the skin (``spread`` 1): two nodes
+    that close in on each other straight, each by just under the skin in
+    small steps, from just beyond the reach plus the margin the list was
+    found with, are in reach at the end and found by the kept list (no
+    rebuild) -- the margin is exactly what no node moving by less than the
+    skin can cross; a shorter one (1.9 skins) misses the pair."""
+    from skfem_rod.contact.barrier import _near_pairs, _pairs
+    from skfem_rod.contact.search import NeighbourList
+    bw = Barrier(distance=0.3, width=0.01, stiffness=1.0, exclusion=0.5)
+    skin, reach = 0.05, 0.31
+    for spread, kept in ((1.0, True), (0.95, False)):
+        near = NeighbourList(skin=skin, spread=spread)
+        gap = reach + 1.99 * skin
+        x = np.array([[0.0, 0, 0], [gap, 0, 0], [5.0, 0, 0]])
+        s = np.array([0.0, 1.0, 2.0])
+        assert _near_pairs(x, s, reach, bw, near).shape == (0, 2)
+        for _ in range(10):
+            x = x + np.array([[0.0999 * skin, 0, 0], [-0.0999 * skin, 0, 0], [0, 0, 0]])
+            got = _near_pairs(x, s, reach, bw, near)
+        assert near.builds == 1
+        assert _pairs(x, s, reach, bw).shape == (1, 2)
+        assert (got.shape == (1, 2)) is kept
+
+
+def test_a_kept_node_pattern_gives_the_matrix_a_fresh_one_gives():
+    """:class:`NodePattern` against the entry-by-entry sparse sum of the
+    blocks: new blocks on the kept node list (no new pattern), a new list
+    (a new pattern), pairs repeated and a node twice in one tuple; the
+    indices sorted, no duplicates, as the solve's sparse sums expect."""
+    import scipy.sparse as sp
+    from skfem_rod.contact.barrier import NodePattern, _blocks
+    rng = np.random.default_rng(5)
+    pat = NodePattern()
+    n, dofs, m = 40, 6, 6
+    lists = [rng.integers(0, n, (60, 2)), None, rng.integers(0, n, (70, 2))]
+    lists[1] = lists[0]
+    lists[2][:5] = lists[2][5:10]                       # pairs repeated
+    lists[2][10, 1] = lists[2][10, 0]                   # a node twice
+    for k, nodes in enumerate(lists):
+        blk = rng.standard_normal((nodes.shape[0], 2 * m, 2 * m))
+        H = pat.matrix(blk, nodes, n, dofs, m)
+        dof = (nodes[:, :, None] * dofs + np.arange(m)).reshape(nodes.shape[0], -1)
+        want = _blocks(blk, dof, n * dofs)
+        assert abs(H - want).max() <= 1e-13 * abs(want).max()
+        canon = sp.csc_matrix((H.data.copy(), H.indices.copy(), H.indptr.copy()),
+                              shape=H.shape)
+        canon.has_canonical_format = False
+        canon.sum_duplicates()                          # sorts, sums duplicates
+        assert np.array_equal(canon.indices, H.indices) and canon.nnz == H.nnz
+        assert pat.builds == (1, 1, 2)[k]
 
 
 def test_overlapping_nodes_have_infinite_energy():

@@ -390,17 +390,23 @@ class NeighbourList:
     """Broad-phase candidates kept between searches (a Verlet list).
 
     The broad phase (:func:`_broad_phase`) is run with a margin ``2
-    LEBESGUE skin`` and its pairs are kept while no node has moved more
+    spread skin`` and its pairs are kept while no node has moved more
     than ``skin`` from where they were found and ``reach`` has not grown:
-    a slave point and an element curve then move by at most ``LEBESGUE
+    a slave point and an element curve then move by at most ``spread
     skin`` each, every distance by at most the margin, and the kept pairs
     are a superset of what a new broad phase would return.  The narrow
     phase sees the same closest points (a candidate beyond them is bounded
     out or projected farther), so a search with the list gives the answer
     of one without it; the lower bounds of the candidates are recomputed
     at every search.  Newton iterations, proximal and damped steps move the
-    nodes by small amounts, so most searches skip the broad phase."""
+    nodes by small amounts, so most searches skip the broad phase.
+
+    ``spread``: how far a point of what is searched moves where no node
+    moves by more than one unit -- ``LEBESGUE`` for points of the element
+    curves (the default), 1 for the nodes themselves (the node barrier's
+    pairs, :mod:`.barrier`), whose margin is then ``2 skin``."""
     skin: float
+    spread: float = LEBESGUE
     r: np.ndarray = None          # nodal positions where the pairs were found
     reach: float = None           # the reach they were found for
     i: np.ndarray = None
@@ -413,7 +419,7 @@ class NeighbourList:
         if (self.r is None or r.shape != self.r.shape or not reach <= self.reach
                 or not np.einsum("nc,nc->n", r - self.r, r - self.r).max() <= self.skin ** 2):
             # (written so that a NaN also finds the pairs anew, as without the list)
-            self.i, self.j = find(2.0 * LEBESGUE * self.skin)
+            self.i, self.j = find(2.0 * self.spread * self.skin)
             self.r, self.reach = r.copy(), reach
             self.builds += 1
         return self.i, self.j
