@@ -99,7 +99,7 @@ from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
 from .options import EnergyOptions
-from .ordering import KeptOrdering, Ordered
+from .ordering import KeptOrdering, KeptSum, Ordered
 from .problem import Problem
 from .rotations import vee
 
@@ -344,6 +344,9 @@ class EnergySolve:
         # the barrier's and the friction's Hessian patterns, kept while
         # their pairs recur (the friction's: the lag's, fixed for a solve)
         self.patterns = (NodePattern(), NodePattern())
+        # ... and the tangent's, their sum with the rod's (and the bend's,
+        # the shear's, a pseudo-time step's), kept while none changes
+        self.summed = KeptSum()
         #: the anchor of a pseudo-time step while one is solved (_damped)
         self.proximal = None
         # no kink tighter than half the radius (barrier module doc, "Local
@@ -414,12 +417,8 @@ class EnergySolve:
             E, G = E + pw[0], G + pw[1]
         K = None
         if tangent:
-            K = ev.tangent + bw.hessian + (fw.hessian if fw is not None else 0)
-            for local in (kw, sw):
-                if local.hessian is not None:
-                    K = K + local.hessian
-            if pw is not None:
-                K = K + pw[2]
+            K = self.summed([ev.tangent, bw.hessian, fw.hessian if fw is not None else None,
+                             kw.hessian, sw.hessian, pw[2] if pw is not None else None])
         return E, G, K, ev, bw
 
     def energy(self, r, R, lam, lag=None):
@@ -853,16 +852,17 @@ class EnergySolve:
         """The frictional step from the equilibrium ``(r, R)`` to ``lam1``
         whose static solve failed (``rep``: its report, the predicted
         ``(r1, R1)``), by pseudo-time steps at ``lam1``: each minimizes the
-        energy with the friction from the last step's state (its lag
-        settled to ``lag_tol``, solved to ``lag_rtol``) and the
-        :class:`Proximal` term anchored
-        there (module constants ``DAMPED_*``), an implicit step of a
-        viscous flow whose friction acts against each pseudo-time step's
-        slip; once the proximal force has fallen below ``DAMPED_REST`` of
-        the force scale, the static step from that state (friction from
-        it) ends it.  Returns ``(r, R, StepReport)`` as :meth:`step`;
-        ``damped`` counts the pseudo-time steps."""
-        o, n = self.options, r.shape[0]
+        energy with the friction from the last step's state and the
+        :class:`Proximal` term anchored there (module constants
+        ``DAMPED_*``), solved as a static step is (:meth:`_frictional`:
+        the lag settled to ``live_tol``, then Newton at the state's own
+        normal forces, the fallback's lag where that fails), an implicit
+        step of a viscous flow whose friction acts against each
+        pseudo-time step's slip; once the proximal force has fallen below
+        ``DAMPED_REST`` of the force scale, the static step from that
+        state (friction from it) ends it, or where it fails more
+        pseudo-time steps.  Returns ``(r, R, StepReport)`` as
+        :meth:`step`; ``damped`` counts the pseudo-time steps."""
         ev = self.P.evaluate(r, R, lam1, tangent=False)
         scale = self.P.force_scale(ev)
         c0 = DAMPED_STIFFNESS * scale / self.radius
@@ -873,22 +873,23 @@ class EnergySolve:
         a_r, a_R = r, R                   # the anchor: the last step's state
         y_r, y_R = r1, R1                 # where the next solve starts
         for _ in range(DAMPED_STEPS):
-            lag = friction_lag(a_r, a_R, a_r, a_R, self.s, self.barrier)
             sub = StepReport(converged=False, sigma=sigma)
             self.proximal = Proximal(a_r, a_R, c, self.radius)
             try:
-                settled = self._settle(a_r, a_R, y_r, y_R, lam1, lag, lag.pairs,
-                                       Relaxation(n), o.lag_tol, o.lag_rtol, sigma, sub)
+                # as a static step: the lag settled to live_tol, then the
+                # live Newton (Coulomb's law at the state itself), the
+                # fallback where that fails
+                r2, R2, sub = self._frictional(a_r, a_R, y_r, y_R, lam1, sigma, sub)
             finally:
                 self.proximal = None
             _absorb(rep, sub)
-            if settled is None:
+            if not sub.converged:
                 c *= DAMPED_GROWTH        # a shorter pseudo-time step
                 y_r, y_R = a_r, a_R
                 if c > c0 * DAMPED_GROWTH ** 4:
                     break
                 continue
-            y_r, y_R, _, sigma = settled
+            y_r, y_R, sigma = r2, R2, sub.sigma
             rep.damped += 1
             # the proximal force left at the step's state (on the free dofs)
             force = float(np.linalg.norm(proximal_work(
@@ -900,8 +901,10 @@ class EnergySolve:
             if sub.iterations <= DAMPED_QUICK:
                 c /= DAMPED_GROWTH        # a longer one
             if force <= rest:
-                # near rest: the static step from here, friction from here
-                r2, R2, fin = self.step(a_r, a_R, lam1, 0.0, None, sigma, slip="fallback")
+                # near rest: the static step from here, friction from here;
+                # failing fast where its live Newton fails (more
+                # pseudo-time steps then, the flow slower: docs)
+                r2, R2, fin = self.step(a_r, a_R, lam1, 0.0, None, sigma, slip="cut")
                 _absorb(fin, rep, before=True)
                 fin.damped, fin.slip = rep.damped, first
                 if fin.converged:

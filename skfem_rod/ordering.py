@@ -19,6 +19,7 @@ test (Sylvester's law reads the diagonal of ``U``).
 from typing import NamedTuple, Optional
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 #: the ordering is renewed where the factor's fill (or the matrix's
@@ -46,6 +47,91 @@ class Ordered(NamedTuple):
         return out
 
 
+def _taken(K, idx):
+    """``K[idx][:, idx]`` (CSC, indices sorted) and the positions in
+    ``K.data`` of its entries (``K`` canonical CSC): the block of a
+    matrix whose entries are their own positions."""
+    pos = sp.csc_matrix((np.arange(1, K.nnz + 1, dtype=float), K.indices, K.indptr),
+                        shape=K.shape)
+    P = pos[idx][:, idx].tocsc()
+    P.sort_indices()
+    take = P.data.astype(np.int64) - 1
+    A = sp.csc_matrix((K.data[take], P.indices, P.indptr), shape=P.shape)
+    A.has_sorted_indices = True
+    return A, take
+
+
+class KeptSum:
+    """The sum of sparse matrices whose patterns recur (the tangent's
+    terms: the rod's, fixed; the node barrier's and the friction's, which
+    change where their pairs do).  Where every term has the pattern it
+    had at the last call, the sum is one weighted ``bincount`` of the
+    terms' entries into the kept union pattern (no sparse additions, no
+    sorts); where one changed, scipy's sum, and the terms' patterns
+    kept -- their union and the positions of their entries in it found
+    only when the same patterns come again (the barrier's active pairs
+    change from one iterate to the next in a slip: no work done for a
+    pattern seen once).  Terms that are None are left out."""
+
+    def __init__(self):
+        self._pats = None         # the last call's terms' patterns
+        self._union = None        # their sum's (indices, indptr)
+        self._dest = None         # the positions of their entries in it
+        self.unions = 0           # positions found (tests, benchmarks)
+
+    def __call__(self, terms):
+        """``sum(terms)`` as a canonical CSC matrix (indices sorted, no
+        duplicates)."""
+        terms = [sp.csc_matrix(T) for T in terms if T is not None]
+        if not terms:
+            raise ValueError("KeptSum: no terms to sum")
+        for T in terms:
+            T.sum_duplicates()
+        shape = terms[0].shape
+        same = (self._pats is not None and len(self._pats) == len(terms) and all(
+            T.shape == sh and np.array_equal(T.indptr, p) and np.array_equal(T.indices, i)
+            for T, (sh, p, i) in zip(terms, self._pats)))
+        if not same:
+            S = terms[0].copy()
+            for T in terms[1:]:
+                S = S + T
+            S = sp.csc_matrix(S)
+            S.sum_duplicates()
+            self._pats = [(T.shape, T.indptr.copy(), T.indices.copy()) for T in terms]
+            self._union = self._dest = None
+            return S
+        if self._dest is None:
+            # the patterns again: their union (a sum of ones: the entries
+            # that are zero, which a sum of the values drops, kept) and
+            # where each term's entries go in it
+            U = None
+            for T in terms:
+                O = sp.csc_matrix((np.ones(T.nnz), T.indices, T.indptr), shape=shape)
+                U = O if U is None else U + O
+            U = sp.csc_matrix(U)
+            U.sort_indices()
+            self._union = (U.indices.copy(), U.indptr.copy())
+            indices, indptr = self._union
+            ukeys = _keys(indices, indptr, shape)
+            self._dest = np.concatenate([np.searchsorted(ukeys, _keys(T.indices, T.indptr, shape))
+                                         for T in terms])
+            self.unions += 1
+        indices, indptr = self._union
+        data = np.bincount(self._dest, weights=np.concatenate([T.data for T in terms]),
+                           minlength=indices.size)
+        S = sp.csc_matrix((data, indices.copy(), indptr.copy()), shape=shape)
+        S.has_sorted_indices = True
+        S.has_canonical_format = True
+        return S
+
+
+def _keys(indices, indptr, shape):
+    """The column-major keys ``col * rows + row`` of a CSC pattern's
+    entries (increasing where its indices are sorted)."""
+    cols = np.repeat(np.arange(shape[1], dtype=np.int64), np.diff(indptr))
+    return cols * shape[0] + indices
+
+
 class KeptOrdering:
     """The free block of tangents over the dofs ``free`` (indices), in an
     ordering kept while it stays good (module doc); ``free`` a mask or
@@ -59,14 +145,32 @@ class KeptOrdering:
         self.fill = None          # the factor's fill where the order was computed
         self.nnz = None           # the block's entries there
         self.renewals = 0         # orderings computed
+        # the last block's map: K's pattern and order it was taken for, the
+        # block's pattern, and the entries of K.data it holds
+        self._taken = None
+        self.extractions = 0      # blocks taken by indexing (tests, benchmarks)
 
     def block(self, K):
-        """The free block of ``K`` (sparse, all dofs) in the kept order."""
+        """The free block of ``K`` (sparse, all dofs) in the kept order.
+        Where ``K`` has the last call's pattern (and the order is the
+        same), the block's entries are one gather of ``K``'s (the
+        pattern changes only where the contact pairs do)."""
+        K = sp.csc_matrix(K)
+        K.sum_duplicates()
+        t = self._taken
+        if (t is not None and t[0] is self.order and np.array_equal(t[1], K.indptr)
+                and np.array_equal(t[2], K.indices)):
+            A = sp.csc_matrix((K.data[t[5]], t[3].copy(), t[4].copy()), shape=t[6])
+            A.has_sorted_indices = True
+            return Ordered(A, self.order)
         idx = self.free if self.order is None else self.free[self.order]
-        A = K[idx][:, idx].tocsc()
+        A, take = _taken(K, idx)
         if self.order is not None and A.nnz > self.growth * self.nnz:
             self.order = None
-            return Ordered(K[self.free][:, self.free].tocsc(), None)
+            A, take = _taken(K, self.free)
+        self._taken = (self.order, K.indptr.copy(), K.indices.copy(), A.indices.copy(),
+                       A.indptr.copy(), take, A.shape)
+        self.extractions += 1
         return Ordered(A, self.order)
 
     def factor(self, blk, **options):

@@ -93,3 +93,65 @@ def test_growth_sets_when_the_ordering_is_renewed(growth):
     ko.factor(ko.block(_tangent(n, 120, 2)), **SYM)
     # growth 1: any growth renews; 2: a contact zone a fifth longer keeps it
     assert ko.renewals == (2 if growth == 1.0 else 1)
+
+
+def test_kept_sum_is_the_sum_and_keeps_its_pattern_while_the_terms_keep_theirs():
+    """:class:`KeptSum` against scipy's sum: terms with their own patterns
+    (a band, scattered couplings, one term left out as None); new values
+    on the same patterns (the entries' positions found at the second
+    call, kept at the third); a term's pattern changed (scipy's sum), and
+    again (the new positions found); the result canonical (sorted, no
+    duplicates)."""
+    from skfem_rod.ordering import KeptSum
+    n = 200
+    ks = KeptSum()
+    rng = np.random.default_rng(4)
+
+    def term(seed, density):
+        A = sp.random(n, n, density=density, random_state=seed, format="csc")
+        A.data = rng.standard_normal(A.nnz)             # new values, same pattern
+        return A
+    for k, (seeds, none) in enumerate([((1, 2, 3), False), ((1, 2, 3), True),
+                                       ((1, 2, 3), False), ((1, 5, 3), False),
+                                       ((1, 5, 3), False)]):
+        terms = [_tangent(n, 40, 0).tocsc(), term(seeds[1], 0.02), term(seeds[2], 0.05)]
+        terms[0].data = rng.standard_normal(terms[0].nnz)
+        if k in (0, 3):
+            # entries zero at the first call (a straight rod's tangent has
+            # them): a sum of the values drops them, the kept pattern not
+            terms[0].data[::3] = 0.0
+        if none:
+            terms.insert(1, None)
+        S = ks(terms)
+        want = sum(T for T in terms if T is not None)
+        assert abs(S - want).max() <= 1e-14 * abs(want).max()
+        canon = S.copy()
+        canon.has_canonical_format = False
+        canon.sum_duplicates()
+        assert np.array_equal(canon.indices, S.indices) and canon.nnz == S.nnz
+        # a None leaves the terms as they were: the union kept
+        assert ks.unions == (0, 1, 1, 1, 2)[k]
+    with pytest.raises(ValueError, match="no terms"):
+        ks([None])
+
+
+def test_kept_block_is_taken_anew_only_where_the_pattern_or_the_order_changes():
+    """The free block of a matrix with the last one's pattern is one
+    gather of its entries: equal to the block by indexing for new values,
+    taken anew for a new pattern and after the ordering is renewed."""
+    n = 300
+    free = np.ones(n, bool)
+    free[[0, 5, 150]] = False
+    idx = np.flatnonzero(free)
+    ko = KeptOrdering(free)
+    rng = np.random.default_rng(9)
+    K = _tangent(n, 60, 1).tocsc()
+    ko.factor(ko.block(K), **SYM)                       # the ordering, from K
+    assert ko.extractions == 1
+    for k, contacts in enumerate([60, 60, 80]):
+        K = _tangent(n, contacts, 1).tocsc()
+        K.data = rng.standard_normal(K.nnz)
+        blk = ko.block(K)
+        want = K[idx][:, idx].toarray()[np.ix_(ko.order, ko.order)]
+        assert np.array_equal(blk.A.toarray(), want)
+        assert ko.extractions == (2, 2, 3)[k]
