@@ -154,23 +154,30 @@ class KeptOrdering:
         """The free block of ``K`` (sparse, all dofs) in the kept order.
         Where ``K`` has the last call's pattern (and the order is the
         same), the block's entries are one gather of ``K``'s (the
-        pattern changes only where the contact pairs do)."""
+        pattern changes only where the contact pairs do); the gather's
+        map is found when a pattern comes the second time (no work done
+        for a pattern seen once: the barrier's active pairs change from
+        one iterate to the next where strands slide)."""
         K = sp.csc_matrix(K)
         K.sum_duplicates()
         t = self._taken
         if (t is not None and t[0] is self.order and np.array_equal(t[1], K.indptr)
                 and np.array_equal(t[2], K.indices)):
+            if t[3] is None:
+                idx = self.free if self.order is None else self.free[self.order]
+                A, take = _taken(K, idx)
+                self._taken = t = t[:3] + (A.indices.copy(), A.indptr.copy(), take, A.shape)
+                self.extractions += 1
             A = sp.csc_matrix((K.data[t[5]], t[3].copy(), t[4].copy()), shape=t[6])
             A.has_sorted_indices = True
             return Ordered(A, self.order)
         idx = self.free if self.order is None else self.free[self.order]
-        A, take = _taken(K, idx)
+        A = K[idx][:, idx].tocsc()
         if self.order is not None and A.nnz > self.growth * self.nnz:
             self.order = None
-            A, take = _taken(K, self.free)
-        self._taken = (self.order, K.indptr.copy(), K.indices.copy(), A.indices.copy(),
-                       A.indptr.copy(), take, A.shape)
-        self.extractions += 1
+            A = K[self.free][:, self.free].tocsc()
+        A.sort_indices()
+        self._taken = (self.order, K.indptr.copy(), K.indices.copy(), None, None, None, None)
         return Ordered(A, self.order)
 
     def factor(self, blk, **options):
