@@ -57,7 +57,9 @@ One step, in plain sight::
                 DAMPED_CALM steps after a failed one);
             "fallback": settle the lag to lag_tol instead (its solves to
                 lag_rtol), solve to rtol at it and check it again
-                (Coulomb to lag_tol; the static step that ends _damped)
+                (Coulomb to lag_tol; not used by the solve: the static
+                step from _damped's flow at rest is "cut", more
+                pseudo-time steps where it fails)
 
     a solved step has converged if the strands' true least distance
         (crossing.min_distance: closest points of element pairs) is at
@@ -852,17 +854,17 @@ class EnergySolve:
         """The frictional step from the equilibrium ``(r, R)`` to ``lam1``
         whose static solve failed (``rep``: its report, the predicted
         ``(r1, R1)``), by pseudo-time steps at ``lam1``: each minimizes the
-        energy with the friction from the last step's state and the
+        energy with the friction from the last step's state (its lag
+        settled to ``lag_tol``, solved to ``lag_rtol``) and the
         :class:`Proximal` term anchored there (module constants
-        ``DAMPED_*``), solved as a static step is (:meth:`_frictional`:
-        the lag settled to ``live_tol``, then Newton at the state's own
-        normal forces, the fallback's lag where that fails), an implicit
-        step of a viscous flow whose friction acts against each
-        pseudo-time step's slip; once the proximal force has fallen below
-        ``DAMPED_REST`` of the force scale, the static step from that
-        state (friction from it) ends it, or where it fails more
-        pseudo-time steps.  Returns ``(r, R, StepReport)`` as
-        :meth:`step`; ``damped`` counts the pseudo-time steps."""
+        ``DAMPED_*``), an implicit step of a viscous flow whose friction
+        acts against each pseudo-time step's slip; once the proximal
+        force has fallen below ``DAMPED_REST`` of the force scale, the
+        static step from that state (friction from it, ``slip="cut"``)
+        ends it, or where it fails more pseudo-time steps.  Returns ``(r,
+        R, StepReport)`` as :meth:`step`; ``damped`` counts the
+        pseudo-time steps."""
+        o, n = self.options, r.shape[0]
         ev = self.P.evaluate(r, R, lam1, tangent=False)
         scale = self.P.force_scale(ev)
         c0 = DAMPED_STIFFNESS * scale / self.radius
@@ -873,23 +875,22 @@ class EnergySolve:
         a_r, a_R = r, R                   # the anchor: the last step's state
         y_r, y_R = r1, R1                 # where the next solve starts
         for _ in range(DAMPED_STEPS):
+            lag = friction_lag(a_r, a_R, a_r, a_R, self.s, self.barrier)
             sub = StepReport(converged=False, sigma=sigma)
             self.proximal = Proximal(a_r, a_R, c, self.radius)
             try:
-                # as a static step: the lag settled to live_tol, then the
-                # live Newton (Coulomb's law at the state itself), the
-                # fallback where that fails
-                r2, R2, sub = self._frictional(a_r, a_R, y_r, y_R, lam1, sigma, sub)
+                settled = self._settle(a_r, a_R, y_r, y_R, lam1, lag, lag.pairs,
+                                       Relaxation(n), o.lag_tol, o.lag_rtol, sigma, sub)
             finally:
                 self.proximal = None
             _absorb(rep, sub)
-            if not sub.converged:
+            if settled is None:
                 c *= DAMPED_GROWTH        # a shorter pseudo-time step
                 y_r, y_R = a_r, a_R
                 if c > c0 * DAMPED_GROWTH ** 4:
                     break
                 continue
-            y_r, y_R, sigma = r2, R2, sub.sigma
+            y_r, y_R, _, sigma = settled
             rep.damped += 1
             # the proximal force left at the step's state (on the free dofs)
             force = float(np.linalg.norm(proximal_work(
