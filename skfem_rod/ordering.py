@@ -47,6 +47,17 @@ class Ordered(NamedTuple):
         return out
 
 
+class _Taken(NamedTuple):
+    """The last free block :meth:`KeptOrdering.block` took: the order and
+    ``K``'s pattern it was taken for and, once that pattern came again,
+    the block (its pattern) and the entries of ``K.data`` it holds."""
+    order: Optional[np.ndarray]
+    indptr: np.ndarray
+    indices: np.ndarray
+    block: object = None
+    take: Optional[np.ndarray] = None
+
+
 def _taken(K, idx):
     """``K[idx][:, idx]`` (CSC, indices sorted) and the positions in
     ``K.data`` of its entries (``K`` canonical CSC): the block of a
@@ -75,7 +86,7 @@ class KeptSum:
 
     def __init__(self):
         self._pats = None         # the last call's terms' patterns
-        self._union = None        # their sum's (indices, indptr)
+        self._union = None        # their union's (indices, indptr)
         self._dest = None         # the positions of their entries in it
         self.unions = 0           # positions found (tests, benchmarks)
 
@@ -145,9 +156,7 @@ class KeptOrdering:
         self.fill = None          # the factor's fill where the order was computed
         self.nnz = None           # the block's entries there
         self.renewals = 0         # orderings computed
-        # the last block's map: K's pattern and order it was taken for, the
-        # block's pattern, and the entries of K.data it holds
-        self._taken = None
+        self._taken = None        # the last block's _Taken
         self.extractions = 0      # blocks taken by indexing (tests, benchmarks)
 
     def block(self, K):
@@ -161,14 +170,15 @@ class KeptOrdering:
         K = sp.csc_matrix(K)
         K.sum_duplicates()
         t = self._taken
-        if (t is not None and t[0] is self.order and np.array_equal(t[1], K.indptr)
-                and np.array_equal(t[2], K.indices)):
-            if t[3] is None:
+        if (t is not None and t.order is self.order and np.array_equal(t.indptr, K.indptr)
+                and np.array_equal(t.indices, K.indices)):
+            if t.take is None:
                 idx = self.free if self.order is None else self.free[self.order]
                 A, take = _taken(K, idx)
-                self._taken = t = t[:3] + (A.indices.copy(), A.indptr.copy(), take, A.shape)
+                self._taken = t = t._replace(block=A, take=take)
                 self.extractions += 1
-            A = sp.csc_matrix((K.data[t[5]], t[3].copy(), t[4].copy()), shape=t[6])
+            A = sp.csc_matrix((K.data[t.take], t.block.indices.copy(), t.block.indptr.copy()),
+                              shape=t.block.shape)
             A.has_sorted_indices = True
             return Ordered(A, self.order)
         idx = self.free if self.order is None else self.free[self.order]
@@ -176,8 +186,7 @@ class KeptOrdering:
         if self.order is not None and A.nnz > self.growth * self.nnz:
             self.order = None
             A = K[self.free][:, self.free].tocsc()
-        A.sort_indices()
-        self._taken = (self.order, K.indptr.copy(), K.indices.copy(), None, None, None, None)
+        self._taken = _Taken(self.order, K.indptr.copy(), K.indices.copy())
         return Ordered(A, self.order)
 
     def factor(self, blk, **options):
