@@ -103,10 +103,11 @@ class KeptSum:
             T.shape == sh and np.array_equal(T.indptr, p) and np.array_equal(T.indices, i)
             for T, (sh, p, i) in zip(terms, self._pats)))
         if not same:
-            S = terms[0].copy()
+            S = terms[0]
             for T in terms[1:]:
                 S = S + T
-            S = sp.csc_matrix(S)
+            # a new matrix (a copy only where there is one term to return)
+            S = sp.csc_matrix(S, copy=len(terms) == 1)
             S.sum_duplicates()
             self._pats = [(T.shape, T.indptr.copy(), T.indices.copy()) for T in terms]
             self._union = self._dest = None

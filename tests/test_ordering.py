@@ -158,3 +158,14 @@ def test_kept_block_is_taken_anew_only_where_the_pattern_or_the_order_changes():
         # order renewed (indexing), the pattern again (the map), kept,
         # a new pattern (indexing), again (the map)
         assert ko.extractions == (0, 1, 1, 1, 2)[k]
+
+
+def test_kept_sum_of_one_term_is_a_new_matrix():
+    """The sum of a single term is that term's values in a matrix of its
+    own: changing the result leaves the term as it was."""
+    from skfem_rod.ordering import KeptSum
+    T = _tangent(50, 10, 3).tocsc()
+    before = T.toarray()
+    S = KeptSum()([T, None])
+    S.data[:] = 0.0
+    assert np.array_equal(T.toarray(), before)
