@@ -33,7 +33,9 @@ One step, in plain sight::
             Newton on E + D to near_rtol (a globalization only: the live
             solve finishes); lag again at the state; Aitken's
             relaxation of the forces (barrier.Relaxation); until no force
-            changes by more than live_tol times the largest
+            changes by more than live_tol times the largest (where a
+            failure costs only a cut, "cut" below, in at most CUT_LAGS
+            lags)
         repeat (at most max_lags):
             lag again at the state (new pairs slip from where they met)
             Newton with the friction at the state's own normal forces and
@@ -47,19 +49,24 @@ One step, in plain sight::
                 after a shortened step and 0 after a full one: pseudo-
                 transient continuation; at most live_iterations)
             done when the state is an equilibrium with its own lag (the
-                live Newton takes no iteration): Coulomb's law holds at
-                the state's own normal forces
+                live Newton takes no iteration, or the lag at the state
+                has the same friction there: no pair left it and the
+                pairs new to it met during the step, same_friction):
+                Coulomb's law holds at the state's own normal forces
         if the live Newton fails, or the lag stalls (no static path
             through the step: the plies slip), by the step's slip= :
             "cut": the step fails (the load path's first try: it cuts the
                 step, and a half step usually goes through statically);
             "damped": pseudo-time steps through the slip (_damped: the
-                DAMPED_CALM steps after a failed one);
+                DAMPED_CALM steps after a failed one; each Newton on the
+                energy, the friction lagged once at the last one's state,
+                and a proximal term);
             "fallback": settle the lag to lag_tol instead (its solves to
                 lag_rtol), solve to rtol at it and check it again
                 (Coulomb to lag_tol; not used by the solve: the static
-                step from _damped's flow at rest is "cut", more
-                pseudo-time steps where it fails)
+                step from _damped's flow at rest is as "cut", its live
+                Newton at most DAMPED_LIVE iterations, more pseudo-time
+                steps where it fails)
 
     a solved step has converged if the strands' true least distance
         (crossing.min_distance: closest points of element pairs) is at
@@ -94,9 +101,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .contact.barrier import (Barrier, Bend, FrictionLag, NodePattern, Relaxation, Shear,
-                              barrier_work, bend_work, friction_lag, friction_live,
+                              barrier_work, bend_work, carry_slip, friction_lag, friction_live,
                               friction_work, lag_change, node_contact, node_spacing,
-                              shear_work, step_bound)
+                              same_friction, shear_work, step_bound)
 from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
@@ -138,6 +145,19 @@ logger = logging.getLogger(__name__)
 #: 60 lags) succeeds when cut
 LAG_STALL = 8
 LAG_GAIN = 0.9
+#: where a static frictional step that fails is recovered from (a cut of
+#: the load path's first try, ``slip="cut"``; pseudo-time steps with
+#: ``slip="damped"``, and more of them after the static step tried from
+#: their flow), the lag's normal forces have at most CUT_LAGS lags and
+#: CUT_ITERATIONS Newton iterations to settle (to ``live_tol``): on the
+#: frictional plectoneme (100 and 200 elements, gamma_T = 0.3, three
+#: runs) 614 of the 619 lags that settled took 1-3 lags and at most 42
+#: iterations (the other five 5-12 lags or 93-260 iterations), while
+#: the seven that stalled ran 9-22 lags (233-433 iterations) before
+#: LAG_STALL found them, and with CUT_LAGS alone a failed first try
+#: still cost 111-202 iterations (docs/contact-solve.md)
+CUT_LAGS = 3
+CUT_ITERATIONS = 60
 #: a frictional step whose static solve failed for one of these reasons
 #: (the friction found no path through the step: the plies slip) is taken
 #: by pseudo-time steps (``EnergySolve._damped``): each minimizes the
@@ -161,6 +181,11 @@ DAMPED_REST = 1e-3
 DAMPED_STEPS = 60
 #: a pseudo-time step solved in at most this many iterations lengthens the next
 DAMPED_QUICK = 25
+#: the live Newton of the static step tried from the flow at rest fails
+#: after this many iterations (more pseudo-time steps follow; the live
+#: solves that converged from there took 7-9, those that failed ran to
+#: the options' 80: measured on the 100- and 200-element slips)
+DAMPED_LIVE = 20
 #: the steps of a load path after a failed one that may take pseudo-time
 #: steps (BarrierStepper.advance)
 DAMPED_CALM = 2
@@ -580,7 +605,7 @@ class EnergySolve:
         if np.array_equal(lu.perm_r, lu.perm_c):
             rep.negative = int(np.sum(lu.U.diagonal() < 0))
 
-    def newton(self, r, R, lam, lag, sigma, rep, rtol=None, live=False):
+    def newton(self, r, R, lam, lag, sigma, rep, rtol=None, live=False, iterations=None):
         """Newton at the fixed ``lag`` to the relative residual ``rtol``
         (default the options'); returns ``(r, R, sigma)`` and fills ``rep``
         (``reason`` set on failure).
@@ -592,10 +617,14 @@ class EnergySolve:
         on the residual's norm, the tangent shifted where the line search
         fails (module doc), at most ``live_iterations``; this is the local
         solve of a step, from a state the energy solve brought near, and a
-        failure is for the caller to recover from."""
+        failure is for the caller to recover from.  ``iterations``: at
+        most so many in this solve (the energy's solves of a step have
+        ``max_iterations`` in all)."""
         o = self.options
         rtol = o.rtol if rtol is None else rtol
         limit = rep.iterations + o.live_iterations if live else o.max_iterations
+        if iterations is not None:
+            limit = min(limit, rep.iterations + iterations)
         start = len(rep.history)
         out = self._newton(r, R, lam, lag, sigma, rep, rtol, live, limit)
         rep.solves.append((live, rep.history[start:]))
@@ -708,7 +737,7 @@ class EnergySolve:
 
     # -- one load step ---------------------------------------------------
     def step(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, slip="damped",
-             rate=None, stable=False):
+             rate=None, stable=False, friction=None):
         """From the equilibrium ``(r, R)`` at load factor ``lam`` to
         ``lam + dlam``, from the state :meth:`predict` gives (``previous``,
         ``ratio``, ``rate``: its arguments; ``stable``: ``(r, R)`` is a
@@ -719,9 +748,12 @@ class EnergySolve:
         there (the load path cuts it: a shorter step usually goes through
         statically); ``"damped"`` pseudo-time steps through the slip
         (:meth:`_damped`); ``"fallback"`` the lag settled to ``lag_tol``
-        (Coulomb's law to that).  Returns ``(r, R, StepReport)``; on
-        failure the state given back is where the solve stopped (not an
-        equilibrium)."""
+        (Coulomb's law to that).  ``friction``: the lag ``(r, R)`` was
+        solved with (:attr:`StepReport.friction` of its step), whose
+        pairs' slips the step carries (:func:`carry_slip`: the friction's
+        memory); None: every pair's slip starts from zero.  Returns ``(r,
+        R, StepReport)``; on failure the state given back is where the
+        solve stopped (not an equilibrium)."""
         if slip not in SLIPS:
             raise ValueError(f"slip={slip!r}: must be one of {', '.join(map(repr, SLIPS))}")
         if not self.mu:
@@ -732,7 +764,8 @@ class EnergySolve:
         if slip == "damped" and not DAMPED_SLIPS:
             slip = "fallback"
         r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep,
-                                       fallback=slip == "fallback")
+                                       fallback=slip == "fallback", fast=slip != "fallback",
+                                       carried=friction)
         if rep.converged or slip != "damped" or not rep.reason.startswith(SLIP_FAILURES):
             return r2, R2, rep
         # no static path through the step (a slip): pseudo-time steps
@@ -801,7 +834,8 @@ class EnergySolve:
                 pass
         return P.update(r, R, p)
 
-    def _frictional(self, r, R, r1, R1, lam1, sigma, rep, fallback=True):
+    def _frictional(self, r, R, r1, R1, lam1, sigma, rep, fallback=True, live_iterations=None,
+                    fast=False, carried=None):
         """The frictional solve of the step from the equilibrium ``(r, R)``
         to the load factor ``lam1``, from the predicted ``(r1, R1)``: the
         lag's normal forces brought to a fixed point on the energy
@@ -809,29 +843,40 @@ class EnergySolve:
         largest; then Newton at the state's own (live) normal forces, until
         the state is an equilibrium with its own lag; where that fails, the
         lag settled to ``lag_tol`` (the ``fallback``; without it the step
-        fails there, ``SLIP_LIVE``).  Returns ``(r, R, rep)``."""
+        fails there, ``SLIP_LIVE``); ``live_iterations``: the live
+        Newton's limit (default the options'); ``fast``: the first
+        settle fails after ``CUT_LAGS`` lags or ``CUT_ITERATIONS``
+        iterations; ``carried``: the lag ``(r, R)`` was solved with, its
+        slips carried (:func:`carry_slip`).  Returns ``(r, R, rep)``."""
         o = self.options
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
+        if carried is not None:
+            lag = carry_slip(lag, r, R, carried, self.eps_v)
         held = lag.pairs
         settled = self._settle(r, R, r1, R1, lam1, lag, held, Relaxation(r.shape[0]),
-                               o.live_tol, o.near_rtol, sigma, rep)
+                               o.live_tol, o.near_rtol, sigma, rep,
+                               lags=CUT_LAGS if fast else None,
+                               budget=CUT_ITERATIONS if fast else None)
         if settled is None:
             return r1, R1, rep
         r1, R1, lag, sigma = settled
+        # pairs, normals and contact points at the state
+        lag = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
         for _ in range(o.max_lags):
-            # pairs, normals and contact points at the state
-            lag = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
             before = rep.iterations
             # no pair in contact: no friction, the energy's own Newton (shifted
             # where not positive definite) finishes, not the live one
-            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
-                                        live=lag.pairs.shape[0] > 0)
+            live = lag.pairs.shape[0] > 0
+            r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep, live=live,
+                                        iterations=live_iterations)
             if rep.reason:
                 break
-            if rep.iterations == before:
+            new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
+            if rep.iterations == before or (live and same_friction(lag, new, held, r.shape[0])):
                 # an equilibrium with its own lag, normal forces its own
-                rep.sigma, rep.friction, rep.lag_change, rep.live = sigma, lag, 0.0, True
+                rep.sigma, rep.friction, rep.lag_change, rep.live = sigma, new, 0.0, True
                 return r1, R1, self._checked(r1, rep)
+            lag = new
         else:
             rep.reason = f"no equilibrium with its own lag in {o.max_lags} live solves"
         if not fallback:
@@ -854,17 +899,18 @@ class EnergySolve:
         """The frictional step from the equilibrium ``(r, R)`` to ``lam1``
         whose static solve failed (``rep``: its report, the predicted
         ``(r1, R1)``), by pseudo-time steps at ``lam1``: each minimizes the
-        energy with the friction from the last step's state (its lag
-        settled to ``lag_tol``, solved to ``lag_rtol``) and the
+        energy with the friction lagged once at the last step's state
+        (its pairs, normal forces and normals; solved to ``lag_rtol``) and the
         :class:`Proximal` term anchored there (module constants
         ``DAMPED_*``), an implicit step of a viscous flow whose friction
         acts against each pseudo-time step's slip; once the proximal
         force has fallen below ``DAMPED_REST`` of the force scale, the
-        static step from that state (friction from it, ``slip="cut"``)
-        ends it, or where it fails more pseudo-time steps.  Returns ``(r,
+        static step from that state (friction from it, failing where its
+        live Newton takes more than ``DAMPED_LIVE`` iterations) ends it,
+        or where it fails more pseudo-time steps.  Returns ``(r,
         R, StepReport)`` as :meth:`step`; ``damped`` counts the
         pseudo-time steps."""
-        o, n = self.options, r.shape[0]
+        o = self.options
         ev = self.P.evaluate(r, R, lam1, tangent=False)
         scale = self.P.force_scale(ev)
         c0 = DAMPED_STIFFNESS * scale / self.radius
@@ -875,22 +921,24 @@ class EnergySolve:
         a_r, a_R = r, R                   # the anchor: the last step's state
         y_r, y_R = r1, R1                 # where the next solve starts
         for _ in range(DAMPED_STEPS):
+            # the friction at the anchor's pairs, normal forces and normals
+            # (one lag: explicit in the normal forces, implicit in the slip)
             lag = friction_lag(a_r, a_R, a_r, a_R, self.s, self.barrier)
             sub = StepReport(converged=False, sigma=sigma)
             self.proximal = Proximal(a_r, a_R, c, self.radius)
             try:
-                settled = self._settle(a_r, a_R, y_r, y_R, lam1, lag, lag.pairs,
-                                       Relaxation(n), o.lag_tol, o.lag_rtol, sigma, sub)
+                t_r, t_R, t_sigma = self.newton(y_r, y_R, lam1, lag, sigma, sub, o.lag_rtol)
             finally:
                 self.proximal = None
+            sub.lags = 1
             _absorb(rep, sub)
-            if settled is None:
+            if sub.reason:
                 c *= DAMPED_GROWTH        # a shorter pseudo-time step
                 y_r, y_R = a_r, a_R
                 if c > c0 * DAMPED_GROWTH ** 4:
                     break
                 continue
-            y_r, y_R, _, sigma = settled
+            y_r, y_R, sigma = t_r, t_R, t_sigma
             rep.damped += 1
             # the proximal force left at the step's state (on the free dofs)
             force = float(np.linalg.norm(proximal_work(
@@ -905,7 +953,10 @@ class EnergySolve:
                 # near rest: the static step from here, friction from here;
                 # failing fast where its live Newton fails (more
                 # pseudo-time steps then, the flow slower: docs)
-                r2, R2, fin = self.step(a_r, a_R, lam1, 0.0, None, sigma, slip="cut")
+                fin = StepReport(converged=False, sigma=sigma)
+                r2, R2, fin = self._frictional(a_r, a_R, a_r, a_R, lam1, sigma, fin,
+                                               fallback=False, live_iterations=DAMPED_LIVE,
+                                               fast=True)
                 _absorb(fin, rep, before=True)
                 fin.damped, fin.slip = rep.damped, first
                 if fin.converged:
@@ -932,21 +983,33 @@ class EnergySolve:
         return rep
 
     def _settle(self, r, R, r1, R1, lam1, lag, held, relax, tol, rtol, sigma, rep,
-                tight=False):
+                tight=False, lags=None, budget=None):
         """The lag's normal forces to a fixed point, from ``(r1, R1)`` in
         the step from ``(r, R)``: solve on the energy at the lag (to
         ``rtol``), lag again at the state, until no force changes by more
-        than ``tol`` times the largest; ``tight``: then solved to rtol at
-        the settled lag and checked again.  Returns ``(r1, R1, lag,
+        than ``tol`` times the largest, in at most ``lags`` lags (default
+        the options' ``max_lags``) and ``budget`` Newton iterations (no
+        limit but the solves' own by default); ``tight``: then solved to
+        rtol at the settled lag and checked again.  Returns ``(r1, R1, lag,
         sigma)``, or None with ``rep.reason`` set."""
         o = self.options
         final = False
         least, since = np.inf, 0          # the least relative change, lags since
-        for k in range(o.max_lags):
+        lags = o.max_lags if lags is None else lags
+        start = rep.iterations
+        for k in range(lags):
+            left = None if budget is None else budget - (rep.iterations - start)
+            if left is not None and left <= 0:
+                rep.reason = (f"the friction lag did not settle in {budget} iterations "
+                              f"({k} solves)")
+                return None
             r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
-                                        None if final else rtol)
+                                        None if final else rtol, iterations=left)
             rep.lags += 1
             if rep.reason:
+                if left is not None and rep.iterations - start >= budget:
+                    rep.reason = (f"the friction lag did not settle in {budget} iterations "
+                                  f"({k + 1} solves)")
                 return None
             new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
             change = lag_change(lag, new, r1.shape[0])
@@ -968,7 +1031,7 @@ class EnergySolve:
                               f"{k + 1} solves)")
                 return None
             lag = relax(new, lag)
-        rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
+        rep.reason = f"the friction lag did not settle in {lags} solves"
         return None
 
 
@@ -1069,9 +1132,12 @@ class BarrierStepper:
         # 10-20 iterations where the fallback's lag took 300-700 to stall,
         # measured); pseudo-time steps through it only in the DAMPED_CALM
         # steps after a failed one
+        # the friction the last solved step converged with: its slips
+        # carried into this step (the friction's memory, carry_slip)
+        friction = self.solved.friction if self.solved_at == lam else None
         r1, R1, rep = self.solve.step(r, R, lam, lam_new - lam, previous, self.sigma, ratio,
                                       "damped" if self.calm < DAMPED_CALM else "cut", rate,
-                                      stable)
+                                      stable, friction)
         if rep.converged:
             self.sigma, self.solved_at, self.solved = rep.sigma, lam_new, rep
             self.calm += 1

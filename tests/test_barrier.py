@@ -8,7 +8,8 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from skfem_rod.contact.barrier import (Barrier, FrictionLag, Relaxation, barrier_work,
-                                       friction_lag, friction_live, friction_work, node_pairs,
+                                       carry_slip, friction_lag, friction_live, friction_work,
+                                       node_pairs,
                                        pair_forces, potential, step_bound)
 
 
@@ -421,6 +422,60 @@ def test_a_rigid_motion_of_the_step_gives_no_slip():
     assert live.slip.max() < 1e-14
     assert np.abs(live.gradient).max() < 1e-12 * np.abs(lag.force).max()
 
+
+def test_carried_slips_start_the_step_with_the_friction_the_state_had():
+    """The slips of the lag a state was solved with, carried into a step
+    from that state: each pair's slip there, its part in the plane normal
+    to the new lag's normal, cut to eps_v (the force is the same: the law
+    is flat beyond); the friction at the step's start is then the state's
+    own, pair by pair (without the carry it is zero), and it moves with a
+    rigid motion of the step as the slips turn with the sections."""
+    x, R, lag = _friction_case(5)
+    mu = 0.3
+    had = friction_work(x, R, lag, mu, 1.0)
+    eps_v = float(np.median(had.slip))                # half stick, half slip
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    _, s = _strands(5)
+    start = friction_lag(x, R, x, R, s, bw)           # a new step from (x, R)
+    assert friction_work(x, R, start, mu, eps_v).slip.max() < 1e-15
+    carried = carry_slip(start, x, R, lag, eps_v)
+    assert np.array_equal(carried.pairs, start.pairs)
+    assert np.array_equal(carried.force, start.force)
+    at = {tuple(p): k for k, p in enumerate(lag.pairs)}
+    k = np.array([at[tuple(p)] for p in carried.pairs])   # every pair is lag's
+    # the slip at the start: the old one's tangential part, cut to eps_v
+    i, j = carried.pairs[:, 0], carried.pairs[:, 1]
+    old = (x[i] + np.einsum("kab,kb->ka", R[i], lag.arm_i[k])) \
+        - (x[j] + np.einsum("kab,kb->ka", R[j], lag.arm_j[k]))
+    n = start.normal
+    ut = old - np.einsum("ka,ka->k", old, n)[:, None] * n
+    y = np.linalg.norm(ut, axis=1)
+    want = ut * np.minimum(1.0, eps_v / y)[:, None]
+    new = (x[i] + np.einsum("kab,kb->ka", R[i], carried.arm_i)) \
+        - (x[j] + np.einsum("kab,kb->ka", R[j], carried.arm_j))
+    assert np.abs(new - want).max() <= 1e-12 * np.abs(x).max()
+    assert (y > eps_v).any() and (y < eps_v).any()
+    # the friction force is the state's, at the start's normals and forces
+    # (here the same state: the old lag's normals were the step's start's)
+    w = friction_work(x, R, carried, mu, eps_v)
+    w_old = friction_work(x, R, FrictionLag(lag.pairs[k], n, carried.force, lag.arm_i[k],
+                                            lag.arm_j[k]), mu, eps_v)
+    assert np.allclose(w.force, w_old.force, rtol=0, atol=1e-12 * mu * carried.force.max())
+    assert np.linalg.norm(w.force, axis=1).max() > 0.5 * mu * carried.force.max()
+    # a rigid motion moves both material points alike: the carried slip
+    # turns with it, its size kept
+    Q = _spin(np.eye(3), np.array([0.4, -0.3, 0.5]))
+    xq, Rq = x @ Q.T + 0.1, np.einsum("ab,kbc->kac", Q, R)
+    moved = (xq[i] + np.einsum("kab,kb->ka", Rq[i], carried.arm_i)) \
+        - (xq[j] + np.einsum("kab,kb->ka", Rq[j], carried.arm_j))
+    assert np.abs(moved - new @ Q.T).max() <= 1e-12 * np.abs(x).max()
+    # a pair the old lag does not have starts from zero slip
+    fewer = FrictionLag(lag.pairs[1:], lag.normal[1:], lag.force[1:], lag.arm_i[1:],
+                        lag.arm_j[1:])
+    part = carry_slip(start, x, R, fewer, eps_v)
+    first = np.flatnonzero((start.pairs == lag.pairs[0]).all(axis=1))
+    assert np.array_equal(part.arm_i[first], start.arm_i[first])
+    assert np.array_equal(part.arm_j[first], start.arm_j[first])
 
 def test_the_lag_keeps_each_pairs_history():
     """Pairs in contact at the step's start slip from there (the two

@@ -122,11 +122,11 @@ def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
     step = EnergySolve.step
 
     def capped(self, r, R, lam, dlam, previous=None, sigma=0.0, ratio=1.0, slip="damped",
-               rate=None, stable=False):
+               rate=None, stable=False, friction=None):
         calls.append((round(lam, 12), round(dlam, 12), previous is not None, slip))
         if dlam > 0.3:
             return r, R, StepReport(converged=False, reason="too long a step")
-        return step(self, r, R, lam, dlam, previous, sigma, ratio, slip, rate, stable)
+        return step(self, r, R, lam, dlam, previous, sigma, ratio, slip, rate, stable, friction)
 
     monkeypatch.setattr(EnergySolve, "step", capped)
     result = rod.solve(2, method="barrier", barrier_force=1.0)
@@ -308,6 +308,28 @@ def test_a_step_that_fails_again_when_grown_back_waits_longer(monkeypatch):
     assert runs == [GROW_AFTER, 2 * GROW_AFTER, 4 * GROW_AFTER, 2]
 
 
+def _check_plectoneme(S, bp, r, R, rep, lam):
+    """The barrier plectoneme's step of report ``rep`` (``S`` its
+    :class:`EnergySolve`, ``bp`` the bench module) converged at ``lam``:
+    no overlap, Coulomb's law at its pairs, an equilibrium to rtol, the
+    link the turns applied."""
+    from skfem_rod.topology import topology
+
+    assert rep.converged, rep.reason
+    assert rep.true_distance >= 2 * bp.RADIUS * (1 - S.options.penetration_tol)
+    nc = S.contact(r, R, rep)
+    assert nc.force.size > 0
+    # Coulomb: no friction force above mu times its pair's normal force
+    excess = np.linalg.norm(nc.friction, axis=1) - S.mu * nc.force
+    assert excess.max() <= 1e-9 * S.mu * nc.force.max()
+    # an equilibrium: the out-of-balance force on the free dofs within rtol
+    G = S.residual(r, R, lam, rep.friction) if rep.live else rep.out_of_balance
+    assert np.linalg.norm(G[S.free]) <= S.options.rtol * S.P.force_scale(rep.evaluation)
+    o = np.argsort(S.rod.mesh.s_nodes)
+    t = topology(r[o], R[o][:, :, 0], t_start=R[o][0][:, 2], t_end=R[o][-1][:, 2])
+    assert t.twist - t.closure_twist + t.writhe == pytest.approx(lam * bp.TURNS, abs=1e-6)
+
+
 @pytest.mark.slow
 def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     """The 100-element frictional barrier plectoneme (gamma_T = 0.3,
@@ -327,7 +349,6 @@ def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     from helpers import load_bench
     from skfem_rod.minimize import LAG_STALL, SLIP_FAILURES, SLIP_LIVE, BarrierStepper
     from skfem_rod.options import split_barrier_options
-    from skfem_rod.topology import topology
 
     bp = load_bench("bench_plectoneme")
     d = np.load(Path(__file__).with_name("data") / "plectoneme_stall.npz")
@@ -343,26 +364,9 @@ def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     assert LAG_STALL <= rep.lags < S.options.max_lags // 2
     stalled = rep.iterations
 
-    def check(r, R, rep, lam):
-        """Converged at ``lam``: no overlap, Coulomb's law at its pairs, an
-        equilibrium to rtol, the link the turns applied."""
-        assert rep.converged, rep.reason
-        assert rep.true_distance >= 2 * bp.RADIUS * (1 - S.options.penetration_tol)
-        nc = S.contact(r, R, rep)
-        assert nc.force.size > 0
-        # Coulomb: no friction force above mu times its pair's normal force
-        excess = np.linalg.norm(nc.friction, axis=1) - S.mu * nc.force
-        assert excess.max() <= 1e-9 * S.mu * nc.force.max()
-        # an equilibrium: the out-of-balance force on the free dofs within rtol
-        G = S.residual(r, R, lam, rep.friction) if rep.live else rep.out_of_balance
-        assert np.linalg.norm(G[S.free]) <= S.options.rtol * S.P.force_scale(rep.evaluation)
-        o = np.argsort(rod.mesh.s_nodes)
-        t = topology(r[o], R[o][:, :, 0], t_start=R[o][0][:, 2], t_end=R[o][-1][:, 2])
-        assert t.twist - t.closure_twist + t.writhe == pytest.approx(lam * bp.TURNS, abs=1e-6)
-
     r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, (d["r0"], d["R0"]))
     assert rep.damped > 0 and rep.slip.startswith(SLIP_FAILURES)
-    check(r, R, rep, lam1 + dlam)
+    _check_plectoneme(S, bp, r, R, rep, lam1 + dlam)
     # what the load path does first: the step fails where the live Newton
     # does (no fallback), in a fraction of the fallback's iterations, and
     # is cut; its two halves go through statically
@@ -371,9 +375,49 @@ def test_a_slip_stalls_the_static_step_and_pseudo_time_steps_go_through_it():
     assert rep.damped == 0 and rep.fallbacks == 0 and rep.iterations < stalled / 2
     r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam / 2, (d["r0"], d["R0"]), ratio=0.5,
                        slip="cut")
-    check(r, R, rep, lam1 + dlam / 2)
+    _check_plectoneme(S, bp, r, R, rep, lam1 + dlam / 2)
     r, R, rep = S.step(r, R, lam1 + dlam / 2, dlam / 2, (d["r1"], d["R1"]), slip="cut")
-    check(r, R, rep, lam1 + dlam)
+    _check_plectoneme(S, bp, r, R, rep, lam1 + dlam)
+
+
+@pytest.mark.slow
+def test_a_first_try_fails_once_its_lag_has_not_settled_in_cut_lags():
+    """The 100-element frictional barrier plectoneme (gamma_T = 0.3,
+    handles) at 8.906 turns (a state of a run of the twenty-ninth
+    session, saved by ``benchmarks/plectoneme_state.py``): its next step
+    of 1/32 turn slips.  Taken with the fallback, the lag's fixed point
+    stalls (at least ``LAG_STALL`` lags).  The load path's first try
+    (``slip="cut"``) gives up once the lag has not settled in
+    ``CUT_LAGS`` lags or ``CUT_ITERATIONS`` iterations, naming it; the
+    step's first half then goes through statically.  Taken by
+    pseudo-time steps (one lag each), the whole step converges: an
+    equilibrium with Coulomb's law at its pairs, the link kept, no
+    overlap."""
+    from pathlib import Path
+
+    from helpers import load_bench
+    from skfem_rod.minimize import (CUT_ITERATIONS, CUT_LAGS, LAG_STALL, SLIP_FAILURES,
+                                    BarrierStepper)
+    from skfem_rod.options import split_barrier_options
+
+    bp = load_bench("bench_plectoneme")
+    d = np.load(Path(__file__).with_name("data") / "plectoneme_lag_stall.npz")
+    rod = bp.build(100, 0.3)
+    S = BarrierStepper(rod, *split_barrier_options(dict(barrier_force=1.0, handles=True))).solve
+    lam1 = float(d["lam1"])
+    dlam = lam1 - float(d["lam0"])
+    previous = (d["r0"], d["R0"])
+    _, _, stalled = S.step(d["r1"], d["R1"], lam1, dlam, previous, slip="fallback")
+    assert not stalled.converged and "stalled" in stalled.reason
+    assert stalled.lags > LAG_STALL
+    _, _, cut = S.step(d["r1"], d["R1"], lam1, dlam, previous, slip="cut")
+    assert not cut.converged and cut.reason.startswith("the friction lag did not settle in")
+    assert cut.lags <= CUT_LAGS and cut.iterations <= CUT_ITERATIONS < stalled.iterations
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam / 2, previous, ratio=0.5, slip="cut")
+    _check_plectoneme(S, bp, r, R, rep, lam1 + dlam / 2)
+    r, R, rep = S.step(d["r1"], d["R1"], lam1, dlam, previous)
+    assert rep.damped > 0 and rep.slip.startswith(SLIP_FAILURES)
+    _check_plectoneme(S, bp, r, R, rep, lam1 + dlam)
 
 
 @pytest.mark.slow

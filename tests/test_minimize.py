@@ -114,21 +114,23 @@ def test_twisted_rod_snaps_into_the_reference_loop():
 def _steps(solve, n, settle=False):
     """``n`` equal steps of ``solve`` to load factor 1, each from the last
     (the predictor from the last two equilibria and, with ``settle`` or
-    after the first step, the path's tangent at the last), from the
+    after the first step, the path's tangent at the last; the friction's
+    slips carried from the step before), from the
     reference or, with ``settle``, from the equilibrium at load factor 0
     (as ``Rod.solve(method="barrier")``; the hairpin's arms start inside
     the barrier's width); the last state and the steps' reports."""
     r, R, prev, reps, sigma = solve.rod.r0.copy(), solve.rod.R0.copy(), None, [], 0.0
-    rate, stable = None, False
+    rate, stable, friction = None, False, None
     if settle:
         r, R, rep = solve.step(r, R, 0.0, 0.0)
         assert rep.converged, rep.reason
-        sigma, rate, stable = rep.sigma, rep.rate, rep.negative == 0
+        sigma, rate, stable, friction = rep.sigma, rep.rate, rep.negative == 0, rep.friction
     for k in range(n):
-        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma, rate=rate, stable=stable)
+        r1, R1, rep = solve.step(r, R, k / n, 1 / n, prev, sigma, rate=rate, stable=stable,
+                                 friction=friction)
         assert rep.converged, rep.reason
         prev, (r, R), sigma = (r, R), (r1, R1), rep.sigma
-        rate, stable = rep.rate, rep.negative == 0
+        rate, stable, friction = rep.rate, rep.negative == 0, rep.friction
         reps.append(rep)
     return r, R, reps
 
@@ -198,6 +200,42 @@ def test_friction_holds_a_pressed_arm_and_obeys_coulomb():
         assert tested >= 2
     assert moved[0.0] > moved[0.3] > moved[1.0] >= 0.0
 
+
+
+def test_a_step_adding_no_load_leaves_a_frictional_equilibrium_as_it_is():
+    """From a converged frictional state of the pressed hairpin, a step of
+    zero load with the slips of the lag it was solved with carried
+    (``friction=``, :func:`carry_slip`: the friction's memory) takes no
+    iteration and leaves the state as it is.  Without them every pair's
+    friction starts the step from zero, and the arm moves (by more than
+    the slip smoothing) while the stuck pairs build their forces up."""
+    solve, rod, r, R, reps = _pressed_hairpin(0.3)
+    lag = reps[-1].friction
+    r2, R2, rep = solve.step(r, R, 1.0, 0.0, None, friction=lag)
+    assert rep.converged and rep.iterations == 0
+    assert np.array_equal(r2, r) and np.array_equal(R2, R)
+    r3, _, fresh = solve.step(r, R, 1.0, 0.0, None)
+    assert fresh.converged and fresh.iterations > 0
+    assert np.abs(r3 - r).max() > solve.eps_v
+
+def test_newton_given_an_iteration_limit_stops_there_naming_it():
+    """A frictional Newton solve (on the energy at a lag, and the live one)
+    given ``iterations`` takes at most that many and says it did not
+    converge; without the limit the same solve converges in more: the
+    limit the static try of a step that may slip is given."""
+    from skfem_rod.minimize import StepReport
+
+    solve, rod, r, R, reps = _pressed_hairpin(0.3)
+    lag = friction_lag(r, R, r, R, solve.s, solve.barrier)
+    for live in (False, True):
+        free = StepReport(converged=False)
+        solve.newton(r, R, 1.5, lag, 0.0, free, live=live)
+        assert free.reason == "" and free.iterations >= 3
+        capped = StepReport(converged=False)
+        solve.newton(r, R, 1.5, lag, 0.0, capped, live=live, iterations=2)
+        assert capped.iterations == 2
+        assert capped.reason.startswith("no convergence in")
+        assert capped.history == free.history[:3]
 
 def test_a_step_whose_strands_overlap_between_nodes_has_not_converged():
     """With a node barrier whose contact distance is below 2 eps, the

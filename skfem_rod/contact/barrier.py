@@ -739,6 +739,20 @@ def lag_change(a, b, n_nodes):
     return float(max(np.abs(b.force - was).max(initial=0.0), a.force[gone].max(initial=0.0)))
 
 
+def same_friction(lag, new, held, n_nodes):
+    """Whether the friction of ``new`` (the lag taken at a state solved
+    with ``lag``, :func:`friction_lag` with ``previous=lag`` and ``held``)
+    is ``lag``'s at that state, with the normal forces and normals live
+    (:func:`friction_live`): every pair of ``lag`` is in ``new`` with its
+    material points, and every pair new to ``new`` met during the step
+    (not in ``held``), so its points coincide at the state: no slip, no
+    force.  The state is then an equilibrium with its own lag, and the
+    solve need not check that again."""
+    if not np.all(_pair_lookup(lag.pairs, n_nodes, new.pairs) >= 0):
+        return False
+    added = new.pairs[_pair_lookup(new.pairs, n_nodes, lag.pairs) < 0]
+    return not np.any(_pair_lookup(added, n_nodes, np.asarray(held).reshape(-1, 2)) >= 0)
+
 class Relaxation:
     """Aitken's dynamic relaxation of the lag's normal forces (Irons &
     Tuck 1969; Kuettler & Wall 2008 for coupled solves): the fixed-point
@@ -813,6 +827,41 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
         arm_i[had], arm_j[had] = previous.arm_i[k], previous.arm_j[k]
     return FrictionLag(pr, n, lam, arm_i, arm_j)
 
+
+def carry_slip(lag, x, R, previous, eps_v):
+    """``lag`` (taken at ``(x, R)``, where a step starts) with the slips
+    that its pairs had in ``previous`` (the lag the state ``(x, R)`` was
+    solved with) carried into the step: the friction's memory.
+
+    Each pair that ``previous`` has keeps its slip there, projected on the
+    plane normal to ``lag``'s normal and cut to at most ``eps_v`` long: its
+    two material points are set that far apart about the nodes' midpoint.
+    The step then starts with the friction force the pair had at the
+    state (a stuck pair's force from its slip below ``eps_v``, a sliding
+    pair's ``mu lambda`` along its slip), not from zero: a step that adds
+    no load leaves the state as it is, and a pair that stuck does not
+    creep by a slip of up to ``eps_v`` per step to build its force up
+    again.  What slip exceeds ``eps_v`` is dropped (the smoothed law is
+    flat there: the force is the same), as a return mapping of an
+    elastic-plastic tangential spring does; a pair that turns back slips
+    through ``2 eps_v`` before its force has turned."""
+    at = _pair_lookup(lag.pairs, x.shape[0], previous.pairs)
+    had = at >= 0
+    if not had.any():
+        return lag
+    k = at[had]
+    i, j = lag.pairs[had, 0], lag.pairs[had, 1]
+    delta = (x[i] + np.einsum("kab,kb->ka", R[i], previous.arm_i[k])) \
+        - (x[j] + np.einsum("kab,kb->ka", R[j], previous.arm_j[k]))
+    n = lag.normal[had]
+    u = delta - np.einsum("ka,ka->k", delta, n)[:, None] * n
+    y = np.linalg.norm(u, axis=1)
+    u *= np.minimum(1.0, eps_v / np.maximum(y, 1e-300))[:, None]
+    mid = 0.5 * (x[i] + x[j])
+    arm_i, arm_j = lag.arm_i.copy(), lag.arm_j.copy()
+    arm_i[had] = np.einsum("kba,kb->ka", R[i], mid + 0.5 * u - x[i])
+    arm_j[had] = np.einsum("kba,kb->ka", R[j], mid - 0.5 * u - x[j])
+    return replace(lag, arm_i=arm_i, arm_j=arm_j)
 
 class FrictionWork(NamedTuple):
     """The friction at one configuration."""
