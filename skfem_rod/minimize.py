@@ -33,9 +33,7 @@ One step, in plain sight::
             Newton on E + D to near_rtol (a globalization only: the live
             solve finishes); lag again at the state; Aitken's
             relaxation of the forces (barrier.Relaxation); until no force
-            changes by more than live_tol times the largest (where a
-            failure costs only a cut, "cut" below, in at most CUT_LAGS
-            lags)
+            changes by more than live_tol times the largest
         repeat (at most max_lags):
             lag again at the state (new pairs slip from where they met)
             Newton with the friction at the state's own normal forces and
@@ -145,19 +143,6 @@ logger = logging.getLogger(__name__)
 #: 60 lags) succeeds when cut
 LAG_STALL = 8
 LAG_GAIN = 0.9
-#: where a static frictional step that fails is recovered from (a cut of
-#: the load path's first try, ``slip="cut"``; pseudo-time steps with
-#: ``slip="damped"``, and more of them after the static step tried from
-#: their flow), the lag's normal forces have at most CUT_LAGS lags and
-#: CUT_ITERATIONS Newton iterations to settle (to ``live_tol``): on the
-#: frictional plectoneme (100 and 200 elements, gamma_T = 0.3, three
-#: runs) 614 of the 619 lags that settled took 1-3 lags and at most 42
-#: iterations (the other five 5-12 lags or 93-260 iterations), while
-#: the seven that stalled ran 9-22 lags (233-433 iterations) before
-#: LAG_STALL found them, and with CUT_LAGS alone a failed first try
-#: still cost 111-202 iterations (docs/contact-solve.md)
-CUT_LAGS = 3
-CUT_ITERATIONS = 60
 #: a frictional step whose static solve failed for one of these reasons
 #: (the friction found no path through the step: the plies slip) is taken
 #: by pseudo-time steps (``EnergySolve._damped``): each minimizes the
@@ -764,8 +749,7 @@ class EnergySolve:
         if slip == "damped" and not DAMPED_SLIPS:
             slip = "fallback"
         r2, R2, rep = self._frictional(r, R, r1, R1, lam1, sigma, rep,
-                                       fallback=slip == "fallback", fast=slip != "fallback",
-                                       carried=friction)
+                                       fallback=slip == "fallback", carried=friction)
         if rep.converged or slip != "damped" or not rep.reason.startswith(SLIP_FAILURES):
             return r2, R2, rep
         # no static path through the step (a slip): pseudo-time steps
@@ -835,7 +819,7 @@ class EnergySolve:
         return P.update(r, R, p)
 
     def _frictional(self, r, R, r1, R1, lam1, sigma, rep, fallback=True, live_iterations=None,
-                    fast=False, carried=None):
+                    carried=None):
         """The frictional solve of the step from the equilibrium ``(r, R)``
         to the load factor ``lam1``, from the predicted ``(r1, R1)``: the
         lag's normal forces brought to a fixed point on the energy
@@ -844,19 +828,16 @@ class EnergySolve:
         the state is an equilibrium with its own lag; where that fails, the
         lag settled to ``lag_tol`` (the ``fallback``; without it the step
         fails there, ``SLIP_LIVE``); ``live_iterations``: the live
-        Newton's limit (default the options'); ``fast``: the first
-        settle fails after ``CUT_LAGS`` lags or ``CUT_ITERATIONS``
-        iterations; ``carried``: the lag ``(r, R)`` was solved with, its
-        slips carried (:func:`carry_slip`).  Returns ``(r, R, rep)``."""
+        Newton's limit (default the options'); ``carried``: the lag
+        ``(r, R)`` was solved with, its slips carried
+        (:func:`carry_slip`).  Returns ``(r, R, rep)``."""
         o = self.options
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
         if carried is not None:
             lag = carry_slip(lag, r, R, carried, self.eps_v)
         held = lag.pairs
         settled = self._settle(r, R, r1, R1, lam1, lag, held, Relaxation(r.shape[0]),
-                               o.live_tol, o.near_rtol, sigma, rep,
-                               lags=CUT_LAGS if fast else None,
-                               budget=CUT_ITERATIONS if fast else None)
+                               o.live_tol, o.near_rtol, sigma, rep)
         if settled is None:
             return r1, R1, rep
         r1, R1, lag, sigma = settled
@@ -955,8 +936,7 @@ class EnergySolve:
                 # pseudo-time steps then, the flow slower: docs)
                 fin = StepReport(converged=False, sigma=sigma)
                 r2, R2, fin = self._frictional(a_r, a_R, a_r, a_R, lam1, sigma, fin,
-                                               fallback=False, live_iterations=DAMPED_LIVE,
-                                               fast=True)
+                                               fallback=False, live_iterations=DAMPED_LIVE)
                 _absorb(fin, rep, before=True)
                 fin.damped, fin.slip = rep.damped, first
                 if fin.converged:
@@ -983,33 +963,21 @@ class EnergySolve:
         return rep
 
     def _settle(self, r, R, r1, R1, lam1, lag, held, relax, tol, rtol, sigma, rep,
-                tight=False, lags=None, budget=None):
+                tight=False):
         """The lag's normal forces to a fixed point, from ``(r1, R1)`` in
         the step from ``(r, R)``: solve on the energy at the lag (to
         ``rtol``), lag again at the state, until no force changes by more
-        than ``tol`` times the largest, in at most ``lags`` lags (default
-        the options' ``max_lags``) and ``budget`` Newton iterations (no
-        limit but the solves' own by default); ``tight``: then solved to
-        rtol at the settled lag and checked again.  Returns ``(r1, R1, lag,
+        than ``tol`` times the largest; ``tight``: then solved to rtol at
+        the settled lag and checked again.  Returns ``(r1, R1, lag,
         sigma)``, or None with ``rep.reason`` set."""
         o = self.options
         final = False
         least, since = np.inf, 0          # the least relative change, lags since
-        lags = o.max_lags if lags is None else lags
-        start = rep.iterations
-        for k in range(lags):
-            left = None if budget is None else budget - (rep.iterations - start)
-            if left is not None and left <= 0:
-                rep.reason = (f"the friction lag did not settle in {budget} iterations "
-                              f"({k} solves)")
-                return None
+        for k in range(o.max_lags):
             r1, R1, sigma = self.newton(r1, R1, lam1, lag, sigma, rep,
-                                        None if final else rtol, iterations=left)
+                                        None if final else rtol)
             rep.lags += 1
             if rep.reason:
-                if left is not None and rep.iterations - start >= budget:
-                    rep.reason = (f"the friction lag did not settle in {budget} iterations "
-                                  f"({k + 1} solves)")
                 return None
             new = friction_lag(r1, R1, r, R, self.s, self.barrier, lag, held)
             change = lag_change(lag, new, r1.shape[0])
@@ -1031,7 +999,7 @@ class EnergySolve:
                               f"{k + 1} solves)")
                 return None
             lag = relax(new, lag)
-        rep.reason = f"the friction lag did not settle in {lags} solves"
+        rep.reason = f"the friction lag did not settle in {o.max_lags} solves"
         return None
 
 
