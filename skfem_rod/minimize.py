@@ -28,7 +28,9 @@ One step, in plain sight::
     frictionless: Newton on E to rtol
     friction:
         lag the friction at the step's start (pairs, normal forces, normals;
-            each pair's contact point a material point of both sections)
+            each pair's contact point a material point of both sections;
+            the slips the pairs had there carried, carry_slip: the step
+            starts with the state's friction forces)
         settle the lag's normal forces to live_tol (_settle):
             Newton on E + D to near_rtol (a globalization only: the live
             solve finishes); lag again at the state; Aitken's

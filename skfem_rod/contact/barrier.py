@@ -681,7 +681,9 @@ def step_bound(x, dx, s, barrier, fraction=0.8, directions=None, near=None):
 # held for the step, :func:`friction_lag`); the two points coincided then,
 # so the slip u_k is their separation now, projected on the plane normal to
 # the normal (carried with the sections' finite rotations: a rigid motion
-# gives none).  The friction force on the points is
+# gives none).  A step of a load path starts with the slip each pair had at
+# its start, cut to eps_v (:func:`carry_slip`, the friction's memory): its
+# two points are set that far apart.  The friction force on the points is
 #
 #     phi_k = mu lambda_k f1(|u_k|) u_k / |u_k|,
 #
@@ -752,6 +754,7 @@ def same_friction(lag, new, held, n_nodes):
         return False
     added = new.pairs[_pair_lookup(new.pairs, n_nodes, lag.pairs) < 0]
     return not np.any(_pair_lookup(added, n_nodes, np.asarray(held).reshape(-1, 2)) >= 0)
+
 
 class Relaxation:
     """Aitken's dynamic relaxation of the lag's normal forces (Irons &
@@ -862,6 +865,7 @@ def carry_slip(lag, x, R, previous, eps_v):
     arm_i[had] = np.einsum("kba,kb->ka", R[i], mid + 0.5 * u - x[i])
     arm_j[had] = np.einsum("kba,kb->ka", R[j], mid - 0.5 * u - x[j])
     return replace(lag, arm_i=arm_i, arm_j=arm_j)
+
 
 class FrictionWork(NamedTuple):
     """The friction at one configuration."""
