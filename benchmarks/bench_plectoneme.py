@@ -195,9 +195,12 @@ def plot(runs, path, title=None):
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     nmax = max(max(r["records"][-1]["turns"] for r in runs), 1.0)
     nn = np.linspace(0, nmax, 100)
+    steps = {r.get("step") for r in runs}
     for k, r in enumerate(runs):
         n = np.array([q["turns"] for q in r["records"]])
         lab = f"{r['n_elements']} el., $\\gamma_T$={r['gamma_T']:g}"
+        if len(steps) > 1:                  # runs of several step sizes
+            lab += f", step {r['step']:.4g}"
         ax[0].plot(n, [q["x_end"] for q in r["records"]], "o-", ms=3, color=f"C{k}", label=lab)
         ax[1].plot(n, [q["torque"] for q in r["records"]], "o-", ms=3, color=f"C{k}", label=lab)
     ax[1].plot(nn, GJ * 2 * np.pi * nn / L, "k:", lw=1, label=r"straight: $GJ\,2\pi n/L$")

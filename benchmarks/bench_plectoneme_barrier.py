@@ -9,6 +9,13 @@ Usage::
     python benchmarks/bench_plectoneme_barrier.py              # 100 and 200 elements,
                                                                # gamma_T = 0 and 0.3
     python benchmarks/bench_plectoneme_barrier.py --elements 100 --gammas 0 --budget 120 --out /tmp/pb
+    python benchmarks/bench_plectoneme_barrier.py --elements 100 --gammas 0.3 --step 0.0625 0.05 0.041667
+
+Several step sizes (``--step``) give one run each: with friction each
+takes its own path through the slips (which pair sticks and when a ply
+slips depends on the history), and a run's cost is its path's; the
+summary gives the median wall time over them per set-up
+(``summary`` in the JSON).
 
 Same rod, supports, loads, twist and contact (radius, ``gamma_T``) as
 ``bench_plectoneme.py`` (dead tension, lateral imperfection, the end
@@ -144,13 +151,30 @@ def render(run_out, path):
     return path
 
 
+def summarize(runs):
+    """Per set-up (elements, gamma_T): how many of its runs (one per step
+    size) reached the turns asked, and the median, least and largest wall
+    time over them (a list of dicts)."""
+    rows = []
+    for key in dict.fromkeys((q["n_elements"], q["gamma_T"]) for q in runs):
+        qs = [q for q in runs if (q["n_elements"], q["gamma_T"]) == key]
+        walls = [q["wall"] for q in qs]
+        rows.append(dict(n_elements=key[0], gamma_T=key[1], runs=len(qs),
+                         reached=sum(not q["stop"] for q in qs), steps=[q["step"] for q in qs],
+                         median_wall=float(np.median(walls)), min_wall=float(min(walls)),
+                         max_wall=float(max(walls))))
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--elements", type=int, nargs="+", default=[100, 200])
     ap.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.3],
                     help="Coulomb coefficients gamma_T")
     ap.add_argument("--turns", type=float, default=bp.TURNS)
-    ap.add_argument("--step", type=float, default=1 / 16, help="turns per load step")
+    ap.add_argument("--step", type=float, nargs="+", default=[1 / 16],
+                    help="turns per load step; several: one run each, and the median wall "
+                         "time over them per set-up")
     ap.add_argument("--width", type=float, default=0.02, help="barrier width / radius")
     ap.add_argument("--force", type=float, default=1.0,
                     help="a node pair's force at half the width (0: the solve's default)")
@@ -160,15 +184,23 @@ def main(argv=None):
                          "link drop below the turns applied")
     ap.add_argument("--out", default=str(HERE / "plectoneme_barrier"))
     a = ap.parse_args(argv)
-    runs = [run(n, g, a.turns, a.step, a.budget, a.width, a.force or None,
-                handles=not a.no_handles) for n in a.elements for g in a.gammas]
+    runs = [run(n, g, a.turns, h, a.budget, a.width, a.force or None,
+                handles=not a.no_handles)
+            for n in a.elements for g in a.gammas for h in a.step]
     out = Path(a.out)
-    pngs = [render(q, f"{a.out}_{q['n_elements']}_{q['gamma_T']:g}.png") for q in runs]
+    tag = (lambda q: f"_step{q['step']:.4g}") if len(a.step) > 1 else (lambda q: "")
+    pngs = [render(q, f"{a.out}_{q['n_elements']}_{q['gamma_T']:g}{tag(q)}.png") for q in runs]
     for q in runs:
         q.pop("_state")
+    summary = summarize(runs)
+    for row in summary:
+        print(f"{row['n_elements']} elements, gamma_T = {row['gamma_T']:g}: "
+              f"{row['reached']} of {row['runs']} run(s) reached {a.turns:g} turns; wall "
+              f"median {row['median_wall']:.1f} s (min {row['min_wall']:.1f}, max "
+              f"{row['max_wall']:.1f}) over the step sizes {row['steps']}")
     tmp = out.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(dict(command=" ".join(["python"] + sys.argv), runs=runs),
-                              indent=1))
+    tmp.write_text(json.dumps(dict(command=" ".join(["python"] + sys.argv), runs=runs,
+                                   summary=summary), indent=1))
     tmp.replace(out.with_suffix(".json"))
     bp.plot(runs, str(out.with_suffix(".png")),
             title="plectoneme (L = 1, r = 0.025, T = 10 EI/L$^2$): Newton on the energy "
