@@ -788,12 +788,15 @@ class Relaxation:
         return replace(new, force=np.maximum(was + self.omega * rho, 0.0))
 
 
-def _arms(x, R, i, j):
+def _arms(x, R, i, j, apart=None):
     """The midpoint of nodes ``i``, ``j`` at ``(x, R)`` as a material point
-    of both sections: its arms in the two body frames."""
+    of both sections: its arms in the two body frames.  ``apart``: the
+    point of section i that far from section j's instead (``(k, 3)``,
+    half of it each way from the midpoint)."""
     mid = 0.5 * (x[i] + x[j])
-    arm_i = np.einsum("kba,kb->ka", R[i], mid - x[i])        # R_i^T (mid - x_i)
-    arm_j = np.einsum("kba,kb->ka", R[j], mid - x[j])
+    half = 0.0 if apart is None else 0.5 * apart
+    arm_i = np.einsum("kba,kb->ka", R[i], mid + half - x[i])     # R_i^T (p_i - x_i)
+    arm_j = np.einsum("kba,kb->ka", R[j], mid - half - x[j])
     return arm_i, arm_j
 
 
@@ -852,18 +855,13 @@ def carry_slip(lag, x, R, previous, eps_v):
     had = at >= 0
     if not had.any():
         return lag
-    k = at[had]
-    i, j = lag.pairs[had, 0], lag.pairs[had, 1]
-    delta = (x[i] + np.einsum("kab,kb->ka", R[i], previous.arm_i[k])) \
-        - (x[j] + np.einsum("kab,kb->ka", R[j], previous.arm_j[k]))
+    delta = _slip(x, R, previous)[4][at[had]]         # the old points' separation
     n = lag.normal[had]
     u = delta - np.einsum("ka,ka->k", delta, n)[:, None] * n
     y = np.linalg.norm(u, axis=1)
     u *= np.minimum(1.0, eps_v / np.maximum(y, 1e-300))[:, None]
-    mid = 0.5 * (x[i] + x[j])
     arm_i, arm_j = lag.arm_i.copy(), lag.arm_j.copy()
-    arm_i[had] = np.einsum("kba,kb->ka", R[i], mid + 0.5 * u - x[i])
-    arm_j[had] = np.einsum("kba,kb->ka", R[j], mid - 0.5 * u - x[j])
+    arm_i[had], arm_j[had] = _arms(x, R, lag.pairs[had, 0], lag.pairs[had, 1], apart=u)
     return replace(lag, arm_i=arm_i, arm_j=arm_j)
 
 
