@@ -103,7 +103,7 @@ import scipy.sparse.linalg as spla
 from .contact.barrier import (Barrier, Bend, FrictionLag, NodePattern, Relaxation, Shear,
                               barrier_work, bend_work, carry_slip, friction_lag, friction_live,
                               friction_work, lag_change, node_contact, node_spacing,
-                              same_friction, shear_work, step_bound)
+                              recorded_lag, same_friction, shear_work, step_bound)
 from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
@@ -1077,13 +1077,34 @@ class BarrierStepper:
         #: path's tangent and the inertia there: the next step's predictor)
         self.solved_at, self.solved = None, None
 
-    def initial(self, r0, R0):
+    def initial(self, r0, R0, friction=None):
         """Step 0: the equilibrium at load factor 0 from ``(r0, R0)`` (no
-        iteration where it is one)."""
-        r, R, rep = self.solve.step(r0, R0, 0.0, 0.0, sigma=self.sigma)
+        iteration where it is one); ``friction``: the lag ``(r0, R0)`` was
+        solved with (:meth:`recorded_friction`), its slips carried."""
+        r, R, rep = self.solve.step(r0, R0, 0.0, 0.0, sigma=self.sigma, friction=friction)
         if rep.converged:
             self.sigma, self.solved_at, self.solved = rep.sigma, 0.0, rep
         return r, R, rep
+
+    def recorded_friction(self, r, R, contact):
+        """The friction lag of the converged state ``(r, R)`` recorded as
+        ``contact`` (a :class:`~skfem_rod.results.ContactState` of this
+        solve's kind: node pairs, their slips), to carry its slips into
+        the next step (:func:`recorded_lag`); None where there is none to
+        carry: no friction, or a record whose pairs are not node pairs of
+        this rod (another solve's, e.g. the augmented Lagrangian's slave
+        points: its friction state does not map onto node pairs)."""
+        if not self.solve.mu or contact is None or contact.slip_T is None:
+            return None
+        s = self.rod.mesh.s_nodes
+        order = np.argsort(s)
+        nodes = []
+        for at in (contact.s, contact.s_bar):
+            k = np.clip(np.searchsorted(s[order], at), 0, s.size - 1)
+            if not np.array_equal(s[order][k], at):
+                return None
+            nodes.append(order[k])
+        return recorded_lag(r, R, np.stack(nodes, axis=1), contact.slip_T, self.solve.barrier)
 
     def advance(self, r, R, lam, lam_new, prev):
         """The step ``lam -> lam_new`` from the equilibrium ``(r, R)``
@@ -1182,8 +1203,12 @@ def solve_barrier(rod, n_steps=1, path=None, callback=None, start=None, **kwargs
     (:data:`skfem_rod.options.BARRIER_PATH`), the fields of
     :class:`~skfem_rod.options.EnergyOptions` and of
     :class:`~skfem_rod.options.BarrierOptions` (``barrier_force`` None:
-    :func:`default_force`).  Returns a :class:`skfem_rod.results.Result`."""
+    :func:`default_force`).  ``start``: a Result (its last step; with
+    friction its pairs' slips carried into step 0,
+    :meth:`BarrierStepper.recorded_friction`) or ``(r, R)`` (friction from
+    zero slips).  Returns a :class:`skfem_rod.results.Result`."""
     from .options import split_barrier_options
+    from .results import Result
     from .solver import follow_path, load_path, start_state
     if rod.contact is None:
         raise ValueError("method='barrier' is a contact solve: switch contact on with "
@@ -1194,7 +1219,11 @@ def solve_barrier(rod, n_steps=1, path=None, callback=None, start=None, **kwargs
     rod.check_constraints()
     S = BarrierStepper(rod, opts, energy, own)
     r0, R0 = (rod.r0, rod.R0) if start is None else start_state(rod, start)
-    r, R, rep = S.initial(np.array(r0, dtype=float), np.array(R0, dtype=float))
+    r0, R0 = np.array(r0, dtype=float), np.array(R0, dtype=float)
+    # restarted from a Result: its last step's friction carried (the memory)
+    friction = S.recorded_friction(r0, R0, start.steps[-1].contact) \
+        if isinstance(start, Result) else None
+    r, R, rep = S.initial(r0, R0, friction)
     if not rep.converged:
         S.result.finish(False, f"no equilibrium at load factor 0: {rep.reason}")
         return S.result

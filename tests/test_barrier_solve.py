@@ -146,6 +146,59 @@ def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
     assert "load factor 0" in stopped.message and "too long a step" in stopped.message
 
 
+def test_a_solve_restarted_from_its_result_carries_the_friction():
+    """A frictional barrier solve restarted from its Result (``start=``,
+    the loads held as preloads) carries the friction of the last step
+    (its pairs' slips, recorded in the ContactState): step 0 takes no
+    iteration and leaves the state as it is, and the next step ends where
+    the solve taken in one go does, to round-off.  Restarted from the bare
+    state ``(r, R)`` the friction starts from zero: step 0 moves the arm by
+    more than the slip smoothing while the stuck pairs build their forces
+    up, and the end differs."""
+    from dataclasses import replace
+
+    from skfem_rod.minimize import BarrierStepper
+    from skfem_rod.options import split_barrier_options
+
+    from test_minimize import _hairpin
+
+    rod, eps, _ = _pressed(0.3)
+    whole = rod.solve(2, method="barrier", barrier_force=1.0)
+    first = rod.solve(1, path=[0, 0.5], method="barrier", barrier_force=1.0)
+    assert whole.converged and first.converged
+    assert np.array_equal(first.steps[-1].r, whole.steps[1].r)
+
+    def held():
+        """The hairpin with the first half of the load held (constant) and
+        the second half growing with the load factor."""
+        again, _, _ = _hairpin()
+        again.point_loads.clear()
+        again.add_force("end", 0.5 * LOAD, constant=True)
+        again.add_force("end", 0.5 * LOAD)
+        again.enable_contact(radius=eps, gamma_T=0.3)
+        return again
+
+    rest = held().solve(1, method="barrier", barrier_force=1.0, start=first)
+    assert rest.converged, rest.message
+    assert rest.steps[0].iterations == 0
+    assert np.array_equal(rest.steps[0].r, first.steps[-1].r)
+    assert np.abs(rest.steps[-1].r - whole.steps[-1].r).max() <= 1e-10 * rod.length
+
+    bare = held().solve(1, method="barrier", barrier_force=1.0,
+                        start=(first.steps[-1].r, first.steps[-1].R))
+    assert bare.converged and bare.steps[0].iterations > 0
+    assert np.abs(bare.steps[0].r - first.steps[-1].r).max() > 1e-3 * eps   # eps_v
+    assert np.abs(bare.steps[-1].r - whole.steps[-1].r).max() > 1e-7 * rod.length
+
+    # a record whose pairs are not node pairs (e.g. the augmented
+    # Lagrangian's slave points) carries nothing
+    S = BarrierStepper(held(), *split_barrier_options(dict(barrier_force=1.0)))
+    st = first.steps[-1]
+    assert S.recorded_friction(st.r, st.R, st.contact) is not None
+    off = replace(st.contact, s=st.contact.s + 1e-3)
+    assert S.recorded_friction(st.r, st.R, off) is None
+
+
 def test_an_unloaded_closed_ring_stays_put():
     """The ring's barrier is periodic by itself (no pair across the closure)."""
     rod = Rod(geometry.ring(1.0), Section.circle(E=1e4, nu=0.3, radius=0.02), 40)

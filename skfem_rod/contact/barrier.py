@@ -865,6 +865,22 @@ def carry_slip(lag, x, R, previous, eps_v):
     return replace(lag, arm_i=arm_i, arm_j=arm_j)
 
 
+def recorded_lag(x, R, pairs, slip, barrier):
+    """The :class:`FrictionLag` of the node pairs ``pairs`` (``(k, 2)``)
+    at ``(x, R)`` whose two material points lie ``slip`` (``(k, 3)``)
+    apart about the nodes' midpoint, with the state's normal forces and
+    normals: a converged state's friction as its record keeps it (the
+    pairs and their slips, ``NodeContact.slip``), which
+    :func:`carry_slip` carries into the next step as it would the lag
+    the state was solved with -- that lag's points are that far apart
+    there, up to their separation along the normal, which the carry
+    drops."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    pf = pair_forces(x, pairs, barrier)
+    arm_i, arm_j = _arms(x, R, pairs[:, 0], pairs[:, 1], apart=np.asarray(slip, float))
+    return FrictionLag(pairs, pf.normal, pf.force, arm_i, arm_j)
+
+
 class FrictionWork(NamedTuple):
     """The friction at one configuration."""
     energy: float             # the potential D (nan with live normal forces: none)
