@@ -103,7 +103,7 @@ import scipy.sparse.linalg as spla
 from .contact.barrier import (Barrier, Bend, FrictionLag, NodePattern, Relaxation, Shear,
                               barrier_work, bend_work, carry_slip, friction_lag, friction_live,
                               friction_work, lag_change, node_contact, node_spacing,
-                              recorded_lag, same_friction, shear_work, step_bound)
+                              same_friction, shear_work, step_bound)
 from .contact.search import NeighbourList
 from .contact.crossing import min_distance
 from .kinematics import ElementRotationError
@@ -315,12 +315,16 @@ def _absorb(into, sub, before=False):
 class EnergySolve:
     """The rod ``rod`` (without contact of its own) with the node ``barrier``
     and, with ``mu > 0``, Coulomb friction at the node pairs (slip
-    smoothing ``eps_v``, default 1e-3 of the radius ``radius``);
+    smoothing ``eps_v``, default 1e-3 of the radius ``radius``); with
+    ``mu_R > 0`` (a length) rotational Coulomb friction, on the pivot about
+    each pair's normal (smoothing ``eps_R``, an angle, default ``eps_v /
+    radius``; :func:`~skfem_rod.contact.barrier.friction_live`);
     ``problem`` the rod's :class:`~skfem_rod.problem.Problem` where it is
     built already."""
 
     def __init__(self, rod, barrier: Barrier, radius, mu=0.0, eps_v=None,
-                 options: Optional[EnergyOptions] = None, problem: Optional[Problem] = None):
+                 options: Optional[EnergyOptions] = None, problem: Optional[Problem] = None,
+                 mu_R=0.0, eps_R=None):
         if rod.contact is not None:
             raise ValueError("rod: the node barrier replaces the rod's own contact; build the "
                              "rod without enable_contact (rod.contact must be None)")
@@ -337,12 +341,19 @@ class EnergySolve:
             raise ValueError("barrier: a closed rod needs the barrier's period, "
                              "Barrier.for_nodes(..., period=rod length), or every pair "
                              "across the closure point touches")
-        if not (np.isfinite(mu) and mu >= 0):
-            raise ValueError(f"mu must be a finite number >= 0, not {mu!r}")
+        for name, value in (("mu", mu), ("mu_R", mu_R)):
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, not {value!r}")
         self.rod, self.barrier, self.radius, self.mu = rod, barrier, float(radius), float(mu)
+        self.mu_R = float(mu_R)
         self.eps_v = 1e-3 * self.radius if eps_v is None else float(eps_v)
         if not (np.isfinite(self.eps_v) and self.eps_v > 0):
             raise ValueError(f"eps_v must be a finite number > 0, not {eps_v!r}")
+        self.eps_R = self.eps_v / self.radius if eps_R is None else float(eps_R)
+        if not (np.isfinite(self.eps_R) and self.eps_R > 0):
+            raise ValueError(f"eps_R must be a finite number > 0, not {eps_R!r}")
+        #: friction of either law on
+        self.with_friction = self.mu > 0 or self.mu_R > 0
         self.options = options or EnergyOptions()
         if problem is not None and problem.rod is not rod:
             raise ValueError("problem: it must be the Problem of rod")
@@ -413,8 +424,10 @@ class EnergySolve:
                           directions=self._directions(R), near=self.near, pattern=bp)
         fw = None
         if lag is not None:
-            fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent, fp)
-                  if live else friction_work(r, R, lag, self.mu, self.eps_v, tangent, fp))
+            fw = (friction_live(r, R, lag, self.barrier, self.mu, self.eps_v, tangent, fp,
+                                self.mu_R, self.eps_R)
+                  if live else friction_work(r, R, lag, self.mu, self.eps_v, tangent, fp,
+                                             self.mu_R, self.eps_R))
         kw = bend_work(r, self.bend, hessian=tangent, dofs=6)
         sw = shear_work(r, R, self.shear, hessian=tangent)
         f = ev.external.reshape(-1, 6)
@@ -460,7 +473,7 @@ class EnergySolve:
         step of report ``rep``, with their friction
         (:func:`~skfem_rod.contact.barrier.node_contact`)."""
         return node_contact(r, R, self.s, self.barrier, rep.friction, self.mu, self.eps_v,
-                            live=rep.live)
+                            live=rep.live, mu_R=self.mu_R, eps_R=self.eps_R)
 
     # -- one Newton solve at a fixed lag ---------------------------------
     def _direction(self, K, G, sigma, rep, live=False):
@@ -743,8 +756,18 @@ class EnergySolve:
         solve stopped (not an equilibrium)."""
         if slip not in SLIPS:
             raise ValueError(f"slip={slip!r}: must be one of {', '.join(map(repr, SLIPS))}")
-        if not self.mu:
+        if not self.with_friction:
             return self._frictionless(r, R, lam, dlam, previous, sigma, ratio, rate, stable)
+        if dlam == 0 and friction is not None and friction.pairs.shape[0]:
+            # no load added to a state solved with the lag `friction`: where it
+            # is still an equilibrium with it, it is the step's answer (the
+            # carry re-centres each pair's points, which moves where the
+            # forces act: a restart would not start where it stopped)
+            rep = StepReport(converged=False, sigma=sigma)
+            self.newton(r, R, lam, friction, sigma, rep, live=True, iterations=0)
+            if not rep.reason:
+                rep.friction, rep.live, rep.lags = friction, True, 1
+                return r, R, self._checked(r, rep)
         rep = StepReport(converged=False, sigma=sigma)
         r1, R1 = self.predict(r, R, dlam, previous, ratio, rate)
         lam1 = lam + dlam
@@ -836,7 +859,7 @@ class EnergySolve:
         o = self.options
         lag = friction_lag(r, R, r, R, self.s, self.barrier)
         if carried is not None:
-            lag = carry_slip(lag, r, R, carried, self.eps_v)
+            lag = carry_slip(lag, r, R, carried, self.eps_v, self.eps_R)
         held = lag.pairs
         settled = self._settle(r, R, r1, R1, lam1, lag, held, Relaxation(r.shape[0]),
                                o.live_tol, o.near_rtol, sigma, rep)
@@ -1040,10 +1063,11 @@ class BarrierStepper:
         from .options import Deadline
         from .results import Result
         c = rod.contact
-        if c.gamma_R > 0:
-            raise ValueError(f"gamma_R = {c.gamma_R!r}: method='barrier' has tangential "
-                             "friction only (gamma_T); rotational friction needs "
-                             "method='newton'")
+        if c.gamma_R > 0 and c.rotational_slip != "pivot":
+            raise ValueError(f"rotational_slip = {c.rotational_slip!r} with gamma_R = "
+                             f"{c.gamma_R!r}: method='barrier' has the rotational law on the "
+                             "pivot about the contact normal only; enable_contact(..., "
+                             "rotational_slip='pivot') (docs/contact-solve.md)")
         bare = copy.copy(rod)
         bare.contact = None
         P = Problem(bare)
@@ -1067,7 +1091,7 @@ class BarrierStepper:
                 f"{node_spacing(barrier.width, c.radius):.3g}", BarrierResolution, stacklevel=4)
         self.solve = EnergySolve(bare, barrier, c.radius, mu=c.gamma_T,
                                  eps_v=own.slip_smoothing * c.radius, options=energy,
-                                 problem=P)
+                                 problem=P, mu_R=c.gamma_R, eps_R=own.slip_smoothing)
         self.rod, self.opts = rod, opts
         self.result = Result(rod)
         self.deadline = Deadline(opts.time_limit)
@@ -1086,25 +1110,19 @@ class BarrierStepper:
             self.sigma, self.solved_at, self.solved = rep.sigma, 0.0, rep
         return r, R, rep
 
-    def recorded_friction(self, r, R, contact):
-        """The friction lag of the converged state ``(r, R)`` recorded as
-        ``contact`` (a :class:`~skfem_rod.results.ContactState` of this
-        solve's kind: node pairs, their slips), to carry its slips into
-        the next step (:func:`recorded_lag`); None where there is none to
-        carry: no friction, or a record whose pairs are not node pairs of
-        this rod (another solve's, e.g. the augmented Lagrangian's slave
-        points: its friction state does not map onto node pairs)."""
-        if not self.solve.mu or contact is None or contact.slip_T is None:
+    def recorded_friction(self, contact):
+        """The friction lag a converged state was solved with, from its
+        record ``contact`` (a :class:`~skfem_rod.results.ContactState`), to
+        carry its slips into the next step; None where there is none: no
+        friction, or a record of another solve's (the augmented
+        Lagrangian's slave points: its friction state does not map onto
+        node pairs) or of another rod's."""
+        lag = None if contact is None else contact.lag
+        if not self.solve.with_friction or lag is None:
             return None
-        s = self.rod.mesh.s_nodes
-        order = np.argsort(s)
-        nodes = []
-        for at in (contact.s, contact.s_bar):
-            k = np.clip(np.searchsorted(s[order], at), 0, s.size - 1)
-            if not np.array_equal(s[order][k], at):
-                return None
-            nodes.append(order[k])
-        return recorded_lag(r, R, np.stack(nodes, axis=1), contact.slip_T, self.solve.barrier)
+        if lag.pairs.size and lag.pairs.max() >= self.rod.mesh.s_nodes.size:
+            return None
+        return lag
 
     def advance(self, r, R, lam, lam_new, prev):
         """The step ``lam -> lam_new`` from the equilibrium ``(r, R)``
@@ -1172,7 +1190,8 @@ class BarrierStepper:
         its point force in ``force`` with ``weight`` 1, the barrier's
         contact distance in ``offset`` (``2 eps + offset``), the friction
         force on node j's section (the master's) and the slip of i
-        relative to j."""
+        relative to j, and the rotational law's couple on j and the pivot
+        of i relative to j about the normal (``slip_R``, along it)."""
         from .contact.friction import OPEN, SLIP, STICK
         from .results import ContactState
         nc = self.solve.contact(r, R, rep)
@@ -1185,12 +1204,18 @@ class BarrierStepper:
             penetration=max(0.0, 2 * radius - rep.true_distance), uzawa=0,
             uzawa_converged=True, newton_total=rep.iterations, candidates=nc.candidates,
             min_distance=rep.true_distance, offset=offset)
-        if self.solve.mu > 0:
-            st.force_T, st.slip_T = -nc.friction, nc.slip
-            st.state_T = np.where(nc.sliding, SLIP, STICK).astype(int)
-            st.force_R, st.slip_R = np.zeros((k, 3)), np.zeros((k, 3))
-            st.state_R = np.full(k, int(OPEN))
-            st.dissipation = float(np.sum(st.force_T * st.slip_T))
+        S = self.solve
+        if S.with_friction:
+            st.force_T, st.slip_T, st.lag = -nc.friction, nc.slip, rep.friction
+            st.state_T = (np.where(nc.sliding, SLIP, STICK) if S.mu > 0
+                          else np.full(k, OPEN)).astype(int)
+            # the rotational law's couple on the master section, the pivot of
+            # the slave's relative to it about the normal
+            st.force_R, st.slip_R = -nc.couple, nc.pivot[:, None] * nc.normal
+            st.state_R = (np.where(nc.pivoting, SLIP, STICK) if S.mu_R > 0
+                          else np.full(k, OPEN)).astype(int)
+            st.dissipation = float(np.sum(st.force_T * st.slip_T)
+                                   + np.sum(st.force_R * st.slip_R))
         return st
 
 
@@ -1221,7 +1246,7 @@ def solve_barrier(rod, n_steps=1, path=None, callback=None, start=None, **kwargs
     r0, R0 = (rod.r0, rod.R0) if start is None else start_state(rod, start)
     r0, R0 = np.array(r0, dtype=float), np.array(R0, dtype=float)
     # restarted from a Result: its last step's friction carried (the memory)
-    friction = S.recorded_friction(r0, R0, start.steps[-1].contact) \
+    friction = S.recorded_friction(start.steps[-1].contact) \
         if isinstance(start, Result) else None
     r, R, rep = S.initial(r0, R0, friction)
     if not rep.converged:

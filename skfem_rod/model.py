@@ -1017,9 +1017,11 @@ class Rod:
             ``method="barrier"`` (contact on) replaces the paper's
             augmented-Lagrangian contact by a smooth barrier between the
             centreline's nodes and solves each step by Newton on the total
-            energy, with tangential friction (``gamma_T``) at the state's
-            own normal forces (:func:`skfem_rod.minimize.solve_barrier`,
-            docs/contact-solve.md; dead forces only, no ``gamma_R``).
+            energy, with tangential friction (``gamma_T``) and rotational
+            friction on the pivot about each pair's normal (``gamma_R``
+            with ``rotational_slip="pivot"``) at the state's own normal
+            forces (:func:`skfem_rod.minimize.solve_barrier`,
+            docs/contact-solve.md; dead forces only).
 
         Returns
         -------

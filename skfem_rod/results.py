@@ -91,7 +91,9 @@ class ContactState:
     one row per node pair inside the barrier's width (``s`` node i,
     ``s_bar`` node j, each pair once): ``force`` is then the pair's point
     force and ``weight`` 1, ``offset`` the barrier's contact distance less
-    ``2 eps``, no Uzawa (:meth:`skfem_rod.minimize.BarrierStepper.contact_state`)."""
+    ``2 eps``, ``force_T`` and ``force_R`` the pair's point force and
+    couple (the latter about the normal, ``slip_R`` the pivot along it), no
+    Uzawa (:meth:`skfem_rod.minimize.BarrierStepper.contact_state`)."""
     s: np.ndarray            # slave arclengths
     s_bar: np.ndarray        # master arclengths
     gap: np.ndarray          # d = 2 eps + offset - distance (positive: penetration)
@@ -110,6 +112,12 @@ class ContactState:
     state_R: np.ndarray = None
     slip_T: np.ndarray = None    # (m, 3) slip increments of the step
     slip_R: np.ndarray = None
+    #: ``Rod.solve(method="barrier")`` with friction: the friction lag the
+    #: state was solved with (a :class:`skfem_rod.contact.barrier.FrictionLag`:
+    #: each pair's material points and the sections' reference), whose
+    #: slips the next step carries -- and a solve restarted from this state
+    #: (``start=result``)
+    lag: object = None
     dissipation: float = 0.0     # friction work dissipated in the step (slave points and
                                  # crossing pairs)
     min_distance: float = None   # true smallest distance between strands (centrelines)

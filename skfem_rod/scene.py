@@ -622,15 +622,17 @@ def _section_kind(table, checker):
 
 def _check_barrier(c, out):
     """What ``method = "barrier"`` needs of the rest of a scene: contact on
-    without rotational friction, and dead forces (an energy)."""
+    (rotational friction only on the pivot about the normal), and dead
+    forces (an energy)."""
     cont = out.get("contact")
     if not (cont and cont.get("enabled")):
         c.bad('solver.method = "barrier" is a contact solve: add a [contact] table with '
               "enabled = true (its radius, exclusion and gamma_T are used)")
-    elif (cont.get("gamma_R") or 0) > 0:
-        c.bad(f'contact.gamma_R = {show_value(cont["gamma_R"])}: solver.method = "barrier" '
-              'has tangential friction only (gamma_T); rotational friction needs method = '
-              '"newton"')
+    elif (cont.get("gamma_R") or 0) > 0 and cont.get("rotational_slip", "twist") != "pivot":
+        c.bad(f'contact.gamma_R = {show_value(cont["gamma_R"])} with contact.rotational_slip = '
+              f'{show_value(cont.get("rotational_slip", "twist"))}: solver.method = "barrier" '
+              'has the rotational law on the pivot about the contact normal only: set '
+              'rotational_slip = "pivot" (or method = "newton")')
     for k, load in enumerate(out.get("load") or []):
         if load is None:
             continue

@@ -477,6 +477,110 @@ def test_carried_slips_start_the_step_with_the_friction_the_state_had():
     assert np.array_equal(part.arm_i[first], start.arm_i[first])
     assert np.array_equal(part.arm_j[first], start.arm_j[first])
 
+# -- the rotational law: the pivot about the normal ----------------------------
+
+@pytest.mark.parametrize("mu", [0.0, 0.3])
+def test_rotational_friction_derivatives_match_finite_differences(mu):
+    """The rotational law (the pivot about the normal, alone or with the
+    tangential law): the lagged potential's gradient and Hessian, and the
+    live couple's Jacobian (the normal and the normal force live), are the
+    exact derivatives in positions and spins, sticking and slipping; the
+    live pair's two couples balance."""
+    x, R, lag = _friction_case()
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    mu_R = 0.01
+    pivot = np.abs(friction_work(x, R, lag, mu, 1e-3, mu_R=mu_R, eps_R=1.0).pivot)
+    assert np.median(pivot) > 1e-2                 # the sections turned within the step
+    for eps_R in (1.0, 1e-3):                      # every pair sticking / most slipping
+        w = friction_work(x, R, lag, mu, 1e-3, mu_R=mu_R, eps_R=eps_R)
+        live = friction_live(x, R, lag, bw, mu, 1e-3, mu_R=mu_R, eps_R=eps_R)
+        rng = np.random.default_rng(9)
+        v = rng.standard_normal((len(x), 6))
+        h = 1e-7
+
+        def at(t, live_=False):
+            Rt = np.stack([_spin(R[k], t * v[k, 3:]) for k in range(len(x))])
+            if live_:
+                return friction_live(x + t * v[:, :3], Rt, lag, bw, mu, 1e-3, jacobian=False,
+                                     mu_R=mu_R, eps_R=eps_R)
+            return friction_work(x + t * v[:, :3], Rt, lag, mu, 1e-3, hessian=False,
+                                 mu_R=mu_R, eps_R=eps_R)
+        plus, minus = at(h), at(-h)
+        slope = float(np.sum(w.gradient * v))
+        assert abs((plus.energy - minus.energy) / (2 * h) - slope) <= 1e-6 * abs(slope)
+        Hv = w.hessian @ v.ravel()
+        fd = ((plus.gradient - minus.gradient) / (2 * h)).ravel()
+        assert np.linalg.norm(fd - Hv) <= 1e-6 * np.linalg.norm(Hv)
+        Jv = live.hessian @ v.ravel()
+        fd = ((at(h, True).gradient - at(-h, True).gradient) / (2 * h)).ravel()
+        assert np.linalg.norm(fd - Jv) <= 1e-6 * np.linalg.norm(Jv)
+        f, m = live.gradient[:, :3], live.gradient[:, 3:]
+        scale = np.abs(m).max() + np.abs(f).max() * np.abs(x).max()
+        assert np.abs((np.cross(x, f) + m).sum(axis=0)).max() <= 1e-13 * scale
+        # without the rotational law the spins' force differs
+        plain = friction_live(x, R, lag, bw, mu, 1e-3)
+        assert np.abs(live.gradient[:, 3:] - plain.gradient[:, 3:]).max() > 0.1 * mu_R
+
+
+def test_rotational_friction_obeys_coulomb_for_couples():
+    """The live couple on each pair is about the live normal, against the
+    pivot, at most mu_R lambda and equal to it where the pair pivots by
+    eps_R or more."""
+    x, R, lag = _friction_case(5)
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    mu_R = 0.02
+    theta = friction_work(x, R, lag, 0.3, 1e-3, mu_R=mu_R, eps_R=1.0).pivot
+    eps_R = float(np.median(np.abs(theta)))        # half stick, half slip
+    w = friction_live(x, R, lag, bw, 0.3, 1e-3, mu_R=mu_R, eps_R=eps_R)
+    lam = pair_forces(x, lag.pairs, bw).force
+    nrm = pair_forces(x, lag.pairs, bw).normal
+    size = np.linalg.norm(w.couple, axis=1)
+    assert np.all(size <= mu_R * lam * (1 + 1e-12))
+    pivoting = np.abs(w.pivot) >= eps_R
+    assert pivoting.any() and (~pivoting).any()
+    assert np.allclose(size[pivoting], mu_R * lam[pivoting], rtol=1e-12)
+    along = np.einsum("ka,ka->k", w.couple, nrm)
+    assert np.allclose(np.abs(along), size, rtol=1e-12)             # about the normal
+    assert np.all(along * w.pivot <= 0)                              # against the pivot
+    assert np.all(along[w.pivot != 0] * w.pivot[w.pivot != 0] < 0)
+
+
+def test_a_rigid_motion_gives_no_pivot_and_turns_a_carried_one():
+    """A rigid rotation of 0.5 rad of the whole configuration over a step
+    gives no pivot and no couple, to round-off; the pivots carried into a
+    step (cut to eps_R) and their couples are the same after a rigid
+    rotation, the couples turned with it; a record of the pivots gives
+    them back."""
+    x0, s = _strands(2)
+    bw = Barrier(distance=0.05 - 2e-3, width=0.01, stiffness=50.0, exclusion=0.05)
+    R0 = _rotations(len(x0), 2)
+    Q = _spin(np.eye(3), 0.5 * np.array([0.6, -0.8, 0.0]))     # 0.5 rad
+    x = x0 @ Q.T + np.array([0.1, -0.2, 0.05])
+    R = np.einsum("ab,kbc->kac", Q, R0)
+    lag = friction_lag(x, R, x0, R0, s, bw)
+    live = friction_live(x, R, lag, bw, 0.0, 1e-4, mu_R=0.01, eps_R=1e-4)
+    assert lag.pairs.shape[0] > 0
+    assert np.abs(live.pivot).max() < 1e-14
+    assert np.abs(live.gradient).max() < 1e-12 * np.abs(lag.force).max()
+    # the pivots of a step, carried into the next from its state
+    x1, R, old = _friction_case(5)
+    _, s1 = _strands(5)
+    had = friction_live(x1, R, old, bw, 0.3, 1e-3, mu_R=0.01, eps_R=1.0)
+    eps_R = float(np.median(np.abs(had.pivot)))
+    start = friction_lag(x1, R, x1, R, s1, bw)
+    carried = carry_slip(start, x1, R, old, 1e-3, eps_R)
+    now = friction_live(x1, R, carried, bw, 0.3, 1e-3, mu_R=0.01, eps_R=eps_R)
+    at = {tuple(p): k for k, p in enumerate(old.pairs)}
+    k = np.array([at[tuple(p)] for p in carried.pairs])
+    want = np.clip(had.pivot[k], -eps_R, eps_R)
+    assert np.abs(now.pivot - want).max() <= 1e-12
+    assert (np.abs(had.pivot[k]) > eps_R).any() and (np.abs(had.pivot[k]) < eps_R).any()
+    xq, Rq = x1 @ Q.T + 0.1, np.einsum("ab,kbc->kac", Q, R)
+    turned = friction_live(xq, Rq, carried, bw, 0.3, 1e-3, mu_R=0.01, eps_R=eps_R)
+    assert np.abs(turned.pivot - now.pivot).max() <= 1e-12
+    assert np.abs(turned.couple - now.couple @ Q.T).max() <= 1e-12 * np.abs(now.couple).max()
+
+
 def test_the_lag_keeps_each_pairs_history():
     """Pairs in contact at the step's start slip from there (the two
     material points coincided at the start's midpoint); a pair that met

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from skfem_rod import Rod, Section, geometry
+from skfem_rod.contact.friction import SLIP
 from skfem_rod.minimize import BarrierResolution, EnergySolve, StepReport, default_force
 
 from test_minimize import _hairpin, _steps
@@ -149,7 +150,7 @@ def test_a_failed_step_is_cut_by_the_load_path(monkeypatch):
 def test_a_solve_restarted_from_its_result_carries_the_friction():
     """A frictional barrier solve restarted from its Result (``start=``,
     the loads held as preloads) carries the friction of the last step
-    (its pairs' slips, recorded in the ContactState): step 0 takes no
+    (the lag it was solved with, kept in its ContactState): step 0 takes no
     iteration and leaves the state as it is, and the next step ends where
     the solve taken in one go does, to round-off.  Restarted from the bare
     state ``(r, R)`` the friction starts from zero: step 0 moves the arm by
@@ -190,13 +191,83 @@ def test_a_solve_restarted_from_its_result_carries_the_friction():
     assert np.abs(bare.steps[0].r - first.steps[-1].r).max() > 1e-3 * eps   # eps_v
     assert np.abs(bare.steps[-1].r - whole.steps[-1].r).max() > 1e-7 * rod.length
 
-    # a record whose pairs are not node pairs (e.g. the augmented
-    # Lagrangian's slave points) carries nothing
+    # a record without the lag (e.g. the augmented Lagrangian's slave
+    # points) or of another rod's pairs carries nothing
     S = BarrierStepper(held(), *split_barrier_options(dict(barrier_force=1.0)))
-    st = first.steps[-1]
-    assert S.recorded_friction(st.r, st.R, st.contact) is not None
-    off = replace(st.contact, s=st.contact.s + 1e-3)
-    assert S.recorded_friction(st.r, st.R, off) is None
+    c = first.steps[-1].contact
+    assert S.recorded_friction(c) is c.lag and c.lag.pairs.size > 0
+    assert S.recorded_friction(replace(c, lag=None)) is None
+    far = replace(c.lag, pairs=c.lag.pairs + first.steps[-1].r.shape[0])
+    assert S.recorded_friction(replace(c, lag=far)) is None
+
+
+def test_rotational_friction_resists_the_pivot_and_obeys_coulomb_for_couples():
+    """The pressed hairpin pulled along and out of its plane, with the
+    rotational law on (``rotational_slip="pivot"``: the relative spin of
+    the sections about each pair's normal): at every step each pair's
+    couple is about its normal, within gamma_R times its normal force and
+    at it where the pair pivots; the couples dissipate; the pairs' forces
+    and couples are internal (the clamp takes up the load); the arm bends
+    less out of its plane than with the tangential law alone; restarted
+    from its Result the solve ends where one taken in one go does (the
+    pivots carried).  Any other rotational law is refused by name."""
+    from test_minimize import _hairpin
+
+    load = np.array([0.02, -0.05, 0.02])
+
+    def build(gamma_R, held=None):
+        rod, eps, _ = _hairpin()
+        rod.point_loads.clear()
+        if held is None:
+            rod.add_force("end", load)
+        else:                                  # that much held, the rest growing
+            rod.add_force("end", held * load, constant=True)
+            rod.add_force("end", (1 - held) * load)
+        rod.enable_contact(radius=eps, gamma_T=0.3, gamma_R=gamma_R, rotational_slip="pivot")
+        return rod
+
+    gamma_R = 0.05
+    rod = build(gamma_R)
+    result = rod.solve(2, method="barrier", barrier_force=1.0)
+    plain = build(0.0).solve(2, method="barrier", barrier_force=1.0)
+    assert result.converged and plain.converged
+    end, clamp = rod.node("end"), rod.node("start")
+    pivoting = 0
+    for k, st in enumerate(result.steps[1:], start=1):
+        c = st.contact
+        size = np.linalg.norm(c.force_R, axis=1)
+        bound = gamma_R * c.force
+        assert np.all(size <= bound * (1 + 1e-12))
+        assert np.allclose(np.abs(np.einsum("ka,ka->k", c.force_R, c.normal)), size,
+                           rtol=1e-12, atol=1e-15)
+        at_bound = c.state_R == SLIP
+        assert np.allclose(size[at_bound], bound[at_bound], rtol=1e-12)
+        pivoting += int(at_bound.sum())
+        assert np.all(np.einsum("ka,ka->k", c.force_R, c.slip_R) >= 0)
+        assert c.dissipation > plain.steps[k].contact.dissipation
+        # internal: the clamp's reaction balances the load, force and moment
+        f, m = result.reaction("start", k)
+        left = np.sqrt(st.r.shape[0]) * st.residual_history[-1]
+        lam = st.load_factor
+        assert np.linalg.norm(f + lam * load) <= left
+        arm = st.r[end] - st.r[clamp]
+        reach = np.linalg.norm(st.r - st.r[clamp], axis=1).max() + 1.0
+        assert np.linalg.norm(m + np.cross(arm, lam * load)) <= reach * left
+    assert pivoting > 0
+    # the pivots resisted: the free arm bends out of its plane less
+    lift = result.steps[-1].r[end, 2] - result.steps[0].r[end, 2]
+    assert 0 < lift < plain.steps[-1].r[end, 2] - plain.steps[0].r[end, 2] - 1e-3
+    # restarted from half the load with its pivots and slips carried
+    first = build(gamma_R).solve(1, path=[0, 0.5], method="barrier", barrier_force=1.0)
+    assert np.array_equal(first.steps[-1].r, result.steps[1].r)
+    rest = build(gamma_R, held=0.5).solve(1, method="barrier", barrier_force=1.0, start=first)
+    assert rest.converged and rest.steps[0].iterations == 0
+    assert np.abs(rest.steps[-1].r - result.steps[-1].r).max() <= 1e-10 * rod.length
+    # the barrier has the pivot law only
+    other, _, _ = _hairpin()
+    other.enable_contact(radius=0.05, gamma_T=0.3, gamma_R=gamma_R)     # "twist"
+    with pytest.raises(ValueError, match="rotational_slip"):
+        other.solve(1, method="barrier", barrier_force=1.0)
 
 
 def test_an_unloaded_closed_ring_stays_put():

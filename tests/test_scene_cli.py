@@ -576,8 +576,10 @@ def test_a_barrier_scene_needs_contact_dead_forces_and_its_own_keys(tmp_path, ca
     msg = problem(base)
     assert 'solver.method = "barrier" is a contact solve: add a [contact] table' in msg
     on = with_(base, ["contact"], {"enabled": True, "gamma_R": 0.1})
-    assert 'contact.gamma_R = 0.1: solver.method = "barrier" has tangential friction' \
-        in problem(on)
+    assert 'contact.gamma_R = 0.1 with contact.rotational_slip = "twist": solver.method = ' \
+        '"barrier" has the rotational law on the pivot' in problem(on)
+    on["contact"]["rotational_slip"] = "pivot"       # the barrier's rotational law
+    assert load_scene(on).data["contact"]["rotational_slip"] == "pivot"
     on["contact"]["gamma_R"] = 0.0
     on["load"].append({"kind": "moment", "where": "end", "vector": [0, 0, 1.0]})
     assert 'load[1] is a moment: solver.method = "barrier" minimizes an energy' in problem(on)

@@ -88,12 +88,12 @@ Everything is vectorized over pairs (``scipy.spatial.cKDTree.query_pairs``
 for the pairs within reach).
 """
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..rotations import cross, hat
+from ..rotations import cross, expm, hat, vee
 
 #: ``|b'(g_hat / 2)| / (kappa g_hat)``: the force of a pair at half the width
 HALF_WIDTH_FORCE = np.log(2.0) + 0.5
@@ -708,6 +708,10 @@ class FrictionLag:
     force: np.ndarray     # (k,) normal force -b'(g) >= 0 at the lag
     arm_i: np.ndarray     # (k, 3) the contact point on section i, in its body frame
     arm_j: np.ndarray     # (k, 3) the contact point on section j, in its body frame
+    #: (k, 3, 3) ``R_i^T R_j`` where the pair's history starts: the two
+    #: sections' relative orientation (the rotational law's reference;
+    #: None: no rotational friction)
+    turn: Optional[np.ndarray] = None
 
 
 def _pair_lookup(pairs, n_nodes, keys_of):
@@ -800,6 +804,20 @@ def _arms(x, R, i, j, apart=None):
     return arm_i, arm_j
 
 
+def _turn(R, i, j, pivot=None, normal=None):
+    """``R_i^T R_j`` of the node pairs ``(i, j)`` at the rotations ``R``:
+    their sections' relative orientation, the rotational law's reference
+    where a pair's history starts.  ``pivot`` (``(k,)``, with the unit
+    ``normal``): the reference the sections have turned that far from
+    about the normal, as the rotational law measures it
+    (:func:`_pivot`: ``sin`` of the angle), i.e. ``R_i^T exp(phi n)
+    R_j`` with ``sin phi = pivot``."""
+    if pivot is None:
+        return np.einsum("kba,kbc->kac", R[i], R[j])
+    phi = np.arcsin(np.clip(pivot, -1.0, 1.0))
+    return np.einsum("kba,kbc,kcd->kad", R[i], expm(phi[:, None] * normal), R[j])
+
+
 def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
     """The :class:`FrictionLag` at the configuration ``(x, R)`` of a step
     that started at ``(x0, R0)`` (node positions ``(n, 3)``, rotations
@@ -823,25 +841,31 @@ def friction_lag(x, R, x0, R0, s, barrier, previous=None, held=None):
     pr, n, lam = pr[keep], pf.normal[keep], pf.force[keep]
     i, j = pr[:, 0], pr[:, 1]
     arm_i, arm_j = _arms(x0, R0, i, j)
+    turn = _turn(R0, i, j)
     if held is not None:
         new = _pair_lookup(pr, x.shape[0], np.asarray(held).reshape(-1, 2)) < 0
         arm_i[new], arm_j[new] = _arms(x, R, i[new], j[new])
+        turn[new] = _turn(R, i[new], j[new])
     if previous is not None:
         at = _pair_lookup(pr, x.shape[0], previous.pairs)
         had = at >= 0
         k = at[had]
         arm_i[had], arm_j[had] = previous.arm_i[k], previous.arm_j[k]
-    return FrictionLag(pr, n, lam, arm_i, arm_j)
+        if previous.turn is not None:
+            turn[had] = previous.turn[k]
+    return FrictionLag(pr, n, lam, arm_i, arm_j, turn)
 
 
-def carry_slip(lag, x, R, previous, eps_v):
+def carry_slip(lag, x, R, previous, eps_v, eps_R=None):
     """``lag`` (taken at ``(x, R)``, where a step starts) with the slips
     that its pairs had in ``previous`` (the lag the state ``(x, R)`` was
     solved with) carried into the step: the friction's memory.
 
     Each pair that ``previous`` has keeps its slip there, projected on the
     plane normal to ``lag``'s normal and cut to at most ``eps_v`` long: its
-    two material points are set that far apart about the nodes' midpoint.
+    two material points are set that far apart about the nodes' midpoint
+    (re-centred there at every step: points kept where they were drift
+    off the nodes as the sections turn, measured, docs/contact-solve.md).
     The step then starts with the friction force the pair had at the
     state (a stuck pair's force from its slip below ``eps_v``, a sliding
     pair's ``mu lambda`` along its slip), not from zero: a step that adds
@@ -850,35 +874,28 @@ def carry_slip(lag, x, R, previous, eps_v):
     again.  What slip exceeds ``eps_v`` is dropped (the smoothed law is
     flat there: the force is the same), as a return mapping of an
     elastic-plastic tangential spring does; a pair that turns back slips
-    through ``2 eps_v`` before its force has turned."""
+    through ``2 eps_v`` before its force has turned.  With ``eps_R`` the
+    rotational law's slip (the pivot about ``lag``'s normal,
+    :func:`_pivot`) is carried likewise, cut to ``eps_R``."""
     at = _pair_lookup(lag.pairs, x.shape[0], previous.pairs)
     had = at >= 0
     if not had.any():
         return lag
     delta = _slip(x, R, previous)[4][at[had]]         # the old points' separation
+    i, j = lag.pairs[had, 0], lag.pairs[had, 1]
     n = lag.normal[had]
     u = delta - np.einsum("ka,ka->k", delta, n)[:, None] * n
     y = np.linalg.norm(u, axis=1)
     u *= np.minimum(1.0, eps_v / np.maximum(y, 1e-300))[:, None]
     arm_i, arm_j = lag.arm_i.copy(), lag.arm_j.copy()
-    arm_i[had], arm_j[had] = _arms(x, R, lag.pairs[had, 0], lag.pairs[had, 1], apart=u)
-    return replace(lag, arm_i=arm_i, arm_j=arm_j)
-
-
-def recorded_lag(x, R, pairs, slip, barrier):
-    """The :class:`FrictionLag` of the node pairs ``pairs`` (``(k, 2)``)
-    at ``(x, R)`` whose two material points lie ``slip`` (``(k, 3)``)
-    apart about the nodes' midpoint, with the state's normal forces and
-    normals: a converged state's friction as its record keeps it (the
-    pairs and their slips, ``NodeContact.slip``), which
-    :func:`carry_slip` carries into the next step as it would the lag
-    the state was solved with -- that lag's points are that far apart
-    there, up to their separation along the normal, which the carry
-    drops."""
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    pf = pair_forces(x, pairs, barrier)
-    arm_i, arm_j = _arms(x, R, pairs[:, 0], pairs[:, 1], apart=np.asarray(slip, float))
-    return FrictionLag(pairs, pf.normal, pf.force, arm_i, arm_j)
+    arm_i[had], arm_j[had] = _arms(x, R, i, j, apart=u)
+    turn = lag.turn
+    if eps_R is not None and turn is not None and previous.turn is not None:
+        _, w, _ = _pivot(R, i, j, previous.turn[at[had]])
+        theta = np.clip(np.einsum("ka,ka->k", n, w), -eps_R, eps_R)
+        turn = turn.copy()
+        turn[had] = _turn(R, i, j, theta, n)
+    return replace(lag, arm_i=arm_i, arm_j=arm_j, turn=turn)
 
 
 class FrictionWork(NamedTuple):
@@ -888,6 +905,11 @@ class FrictionWork(NamedTuple):
     hessian: object           # sparse (6 n, 6 n), or None
     force: np.ndarray         # (k, 3) friction force on node i's section (-dD/du)
     slip: np.ndarray          # (k,) |u|
+    #: (k, 3) the rotational law's couple on node i's section (j gets
+    #: -it) and (k,) its slip, the pivot about the normal (:func:`_pivot`);
+    #: None without rotational friction
+    couple: Optional[np.ndarray] = None
+    pivot: Optional[np.ndarray] = None
 
 
 def _slip(x, R, lag):
@@ -954,7 +976,51 @@ def _assemble(blk, lag, n_nodes, pattern):
     return _node_blocks(blk, lag.pairs, n_nodes, 6, 6, pattern)
 
 
-def friction_work(x, R, lag, mu, eps_v, hessian=True, pattern=None):
+def _pivot(R, i, j, turn):
+    """The rotational law's kinematics of the pairs ``(i, j)`` at the
+    rotations ``R``, ``turn`` their reference (:attr:`FrictionLag.turn`):
+    ``Psi = R_i turn R_j^T``, the relative rotation of the two sections
+    since the reference (the identity for a rigid motion of any size),
+    ``w`` the axial vector of its skew part (``sin`` of its angle about
+    its axis) and its trace.  The slip is the pivot ``theta = n . w``
+    about the normal ``n``: the relative spin the tangential law, whose
+    lever arms lie along the normal, does not see (docs/friction.md,
+    F7, "pivot")."""
+    if turn is None:
+        raise ValueError("rotational friction needs the lag's reference rotations (turn)")
+    Psi = np.einsum("kab,kbc,kdc->kad", R[i], turn, R[j])
+    return Psi, vee(Psi), np.einsum("kaa->k", Psi)
+
+
+def _pivot_gradient(Psi, tr, n):
+    """``d theta / d a`` and ``d theta / d b`` (``theta = n . vee(Psi)``,
+    ``n`` held) over the spatial spins ``a`` of section i and ``b`` of
+    section j (``Psi <- exp(a) Psi exp(-b)``)."""
+    return (0.5 * (tr[:, None] * n - np.einsum("kba,kb->ka", Psi, n)),
+            -0.5 * (tr[:, None] * n - np.einsum("kab,kb->ka", Psi, n)))
+
+
+def _pivot_hessian(blk, Psi, w, n, g_a, g_b, tau, k_theta):
+    """Adds to the pair blocks ``blk`` (``(k, 12, 12)``: x_i, a, x_j, b)
+    the derivative over the spins of the generalized force ``tau (g_a,
+    g_b)`` of the potential ``D(theta)``, ``tau = D'``, ``k_theta = D''``:
+    ``k_theta g g^T + tau dg/d(a, b)`` (``n`` held; the second part not
+    symmetric, as the spins are no coordinates)."""
+    nw = n[:, :, None] * w[:, None, :]
+    hn = hat(n)
+    t = tau[:, None, None]
+    outer = k_theta[:, None, None]
+    blk[:, 3:6, 3:6] += outer * g_a[:, :, None] * g_a[:, None, :] \
+        + t * (-nw - 0.5 * np.swapaxes(Psi, 1, 2) @ hn)
+    blk[:, 3:6, 9:12] += outer * g_a[:, :, None] * g_b[:, None, :] \
+        + t * (nw + 0.5 * hat(np.einsum("kba,kb->ka", Psi, n)))
+    blk[:, 9:12, 3:6] += outer * g_b[:, :, None] * g_a[:, None, :] \
+        + t * (nw - 0.5 * hat(np.einsum("kab,kb->ka", Psi, n)))
+    blk[:, 9:12, 9:12] += outer * g_b[:, :, None] * g_b[:, None, :] \
+        + t * (-nw + 0.5 * Psi @ hn)
+
+
+def friction_work(x, R, lag, mu, eps_v, hessian=True, pattern=None, mu_R=0.0, eps_R=None):
     """The dissipation potential ``D`` of :class:`FrictionLag` ``lag`` at
     ``(x, R)`` (module notes above), friction coefficient ``mu``, slip
     smoothing ``eps_v``, the normal forces and normals the lag's:
@@ -963,11 +1029,14 @@ def friction_work(x, R, lag, mu, eps_v, hessian=True, pattern=None):
     ``D`` in the surface points' slip times their Jacobian on both sides
     (positive semi-definite); the second derivative of the rotation acting
     on the arm is left out.  ``pattern``: a :class:`NodePattern` that
-    keeps the Hessian's pattern between calls (the lag's pairs)."""
+    keeps the Hessian's pattern between calls (the lag's pairs).  With
+    ``mu_R > 0`` (a length) the rotational law too, its slip the pivot
+    about the lag's normal smoothed below ``eps_R`` (:func:`_pivot`), its
+    potential ``mu_R lambda f0(|theta|)`` and its exact derivatives."""
     n_nodes = x.shape[0]
     grad = np.zeros((n_nodes, 6))
     k = lag.pairs.shape[0]
-    if k == 0 or mu == 0:
+    if k == 0 or (mu == 0 and mu_R == 0):
         H = sp.csc_matrix((6 * n_nodes, 6 * n_nodes)) if hessian else None
         return FrictionWork(0.0, grad, H, np.zeros((k, 3)), np.zeros(k))
     i, j, c_i, c_j, delta = _slip(x, R, lag)
@@ -978,18 +1047,33 @@ def friction_work(x, R, lag, mu, eps_v, hessian=True, pattern=None):
     ml = mu * lag.force
     phi = (ml * ratio)[:, None] * u                        # dD/d(delta), in the plane
     _scatter(grad, i, j, c_i, c_j, phi)
-    H = None
     if hessian:
         PJ = (np.eye(3) - nrm[:, :, None] * nrm[:, None, :]) @ _points_jacobian(c_i, c_j)
         # PJ^T L PJ by batched products: the three-operand einsum runs
         # unoptimized, 20 times slower (1.4 ms against 0.07 ms, 600 pairs)
         blk = np.swapaxes(PJ, 1, 2) @ (_law(u, y, ratio, c, ml) @ PJ)
         _arms_turn(blk, c_i, c_j, phi)
-        H = _assemble(blk, lag, n_nodes, pattern)
-    return FrictionWork(float(np.sum(ml * f0)), grad, H, -phi, y)
+    energy = float(np.sum(ml * f0))
+    couple = theta = None
+    if mu_R > 0:
+        Psi, w, tr = _pivot(R, i, j, lag.turn)
+        theta = np.einsum("ka,ka->k", nrm, w)
+        f0r, ratio_r, c_r = _smoothed(np.abs(theta), eps_R)
+        mlr = mu_R * lag.force
+        tau = mlr * ratio_r * theta                         # dD_R / d theta
+        g_a, g_b = _pivot_gradient(Psi, tr, nrm)
+        np.add.at(grad[:, 3:], i, tau[:, None] * g_a)
+        np.add.at(grad[:, 3:], j, tau[:, None] * g_b)
+        energy += float(np.sum(mlr * f0r))
+        couple = -tau[:, None] * g_a
+        if hessian:
+            _pivot_hessian(blk, Psi, w, nrm, g_a, g_b, tau, mlr * (ratio_r + c_r))
+    H = _assemble(blk, lag, n_nodes, pattern) if hessian else None
+    return FrictionWork(energy, grad, H, -phi, y, couple, theta)
 
 
-def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True, pattern=None):
+def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True, pattern=None, mu_R=0.0,
+                  eps_R=None):
     """The friction of ``lag``'s pairs and contact points with the normal
     force and normal *live*: each pair's ``lambda = -b'(g)`` and normal
     ``(x_i - x_j) / |x_i - x_j|`` at ``(x, R)``, not the lag's.  Coulomb's
@@ -1006,11 +1090,16 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True, pattern=None):
     ``delta x phi``, small: ``delta``'s normal part is within the
     barrier's width).  ``energy`` is nan; a pair
     at or inside the contact distance gives an infinite force.
-    ``pattern``: as :func:`friction_work`'s."""
+    ``pattern``: as :func:`friction_work`'s.  With ``mu_R > 0`` the
+    rotational law too: a pure couple ``-+ mu_R lambda f1(|theta|)
+    sign(theta) n`` on the two sections about the live normal, ``theta``
+    the pivot about it (:func:`_pivot`; balanced, and at most ``mu_R
+    lambda``: Coulomb's law for couples at the state), its Jacobian
+    exact."""
     n_nodes = x.shape[0]
     grad = np.zeros((n_nodes, 6))
     k = lag.pairs.shape[0]
-    if k == 0 or mu == 0:
+    if k == 0 or (mu == 0 and mu_R == 0):
         H = sp.csc_matrix((6 * n_nodes, 6 * n_nodes)) if jacobian else None
         return FrictionWork(np.nan, grad, H, np.zeros((k, 3)), np.zeros(k))
     i, j, c_i, c_j, delta = _slip(x, R, lag)
@@ -1032,7 +1121,6 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True, pattern=None):
     couple = -0.5 * cross(delta, phi)
     np.add.at(grad[:, 3:], i, couple)
     np.add.at(grad[:, 3:], j, couple)
-    H = None
     if jacobian:
         J = _points_jacobian(c_i, c_j)
         P = np.eye(3) - nrm[:, :, None] * nrm[:, None, :]
@@ -1054,8 +1142,34 @@ def friction_live(x, R, lag, barrier, mu, eps_v, jacobian=True, pattern=None):
         dcouple = 0.5 * (hat(phi) @ J - hat(delta) @ dphi)
         blk[:, 3:6, :] += dcouple
         blk[:, 9:12, :] += dcouple
-        H = _assemble(blk, lag, n_nodes, pattern)
-    return FrictionWork(np.nan, grad, H, -phi, y)
+    torque = theta = None
+    if mu_R > 0:
+        # the pivot about the live normal; tau n on i, -tau n on j
+        Psi, w, tr = _pivot(R, i, j, lag.turn)
+        theta = np.einsum("ka,ka->k", nrm, w)
+        _, ratio_r, c_r = _smoothed(np.abs(theta), eps_R)
+        tau = mu_R * lam * ratio_r * theta
+        np.add.at(grad[:, 3:], i, tau[:, None] * nrm)
+        np.add.at(grad[:, 3:], j, -tau[:, None] * nrm)
+        torque = -tau[:, None] * nrm
+        if jacobian:
+            g_a, g_b = _pivot_gradient(Psi, tr, nrm)
+            k_t = mu_R * lam * (ratio_r + c_r)                 # d tau / d theta
+            # d theta = g_a . a + g_b . b + w . dn,  dn = P (dx_i - dx_j) / dist;
+            # d tau also through lambda(g)
+            dtau = np.empty((k, 12))
+            dtau[:, 0:3] = (k_t / dist)[:, None] * np.einsum("kab,kb->ka", P, w) \
+                + (mu_R * ratio_r * theta * dlam)[:, None] * nrm
+            dtau[:, 6:9] = -dtau[:, 0:3]
+            dtau[:, 3:6] = k_t[:, None] * g_a
+            dtau[:, 9:12] = k_t[:, None] * g_b
+            rows = nrm[:, :, None] * dtau[:, None, :]          # d(tau n), (k, 3, 12)
+            rows[:, :, 0:3] += (tau / dist)[:, None, None] * P
+            rows[:, :, 6:9] -= (tau / dist)[:, None, None] * P
+            blk[:, 3:6, :] += rows
+            blk[:, 9:12, :] -= rows
+    H = _assemble(blk, lag, n_nodes, pattern) if jacobian else None
+    return FrictionWork(np.nan, grad, H, -phi, y, torque, theta)
 
 
 class NodeContact(NamedTuple):
@@ -1069,14 +1183,22 @@ class NodeContact(NamedTuple):
     friction: np.ndarray      # (k, 3) friction point force on node i's section (j gets -it)
     slip: np.ndarray          # (k, 3) the slip of i's contact point relative to j's (u)
     sliding: np.ndarray       # (k,) bool: |u| >= eps_v (the law's full Coulomb force)
+    #: (k, 3) the rotational law's couple on node i's section (j gets -it),
+    #: about the normal; (k,) the pivot of i relative to j about the normal
+    #: (:func:`_pivot`); (k,) bool: |pivot| >= eps_R.  Zero without it.
+    couple: np.ndarray = None
+    pivot: np.ndarray = None
+    pivoting: np.ndarray = None
 
 
-def node_contact(x, R, s, barrier, lag=None, mu=0.0, eps_v=None, live=True):
+def node_contact(x, R, s, barrier, lag=None, mu=0.0, eps_v=None, live=True, mu_R=0.0,
+                 eps_R=None):
     """:class:`NodeContact` at ``(x, R)``: the barrier's pairs and forces
     and, with ``mu > 0`` and the :class:`FrictionLag` ``lag`` the state
     was solved with, each pair's friction force and slip
     (:func:`friction_live` where ``live``, else :func:`friction_work` at
-    the lag's normal forces); pairs the lag does not have carry none."""
+    the lag's normal forces); pairs the lag does not have carry none.
+    With ``mu_R > 0`` the rotational law's couples and pivots too."""
     bw = barrier
     pr = _pairs(x, s, bw.distance + bw.width, bw)
     pf = pair_forces(x, pr, bw)
@@ -1084,10 +1206,12 @@ def node_contact(x, R, s, barrier, lag=None, mu=0.0, eps_v=None, live=True):
     k = int(on.sum())
     friction, slip = np.zeros((k, 3)), np.zeros((k, 3))
     sliding = np.zeros(k, dtype=bool)
+    couple, pivot, pivoting = np.zeros((k, 3)), np.zeros(k), np.zeros(k, dtype=bool)
     pairs = pr[on]
-    if lag is not None and mu > 0 and lag.pairs.shape[0] and k:
-        fw = (friction_live(x, R, lag, bw, mu, eps_v, jacobian=False) if live
-              else friction_work(x, R, lag, mu, eps_v, hessian=False))
+    if lag is not None and (mu > 0 or mu_R > 0) and lag.pairs.shape[0] and k:
+        fw = (friction_live(x, R, lag, bw, mu, eps_v, jacobian=False, mu_R=mu_R, eps_R=eps_R)
+              if live else friction_work(x, R, lag, mu, eps_v, hessian=False, mu_R=mu_R,
+                                         eps_R=eps_R))
         at = _pair_lookup(pairs, x.shape[0], lag.pairs)
         has, src = at >= 0, at[at >= 0]
         f = fw.force[src]
@@ -1096,5 +1220,8 @@ def node_contact(x, R, s, barrier, lag=None, mu=0.0, eps_v=None, live=True):
         friction[has] = f
         slip[has] = -f * (fw.slip[src] / np.maximum(size, 1e-300))[:, None]
         sliding[has] = fw.slip[src] >= eps_v
+        if mu_R > 0:
+            couple[has], pivot[has] = fw.couple[src], fw.pivot[src]
+            pivoting[has] = np.abs(fw.pivot[src]) >= eps_R
     return NodeContact(pairs, pf.normal[on], pf.distance[on], pf.force[on], int(pr.shape[0]),
-                       friction, slip, sliding)
+                       friction, slip, sliding, couple, pivot, pivoting)
